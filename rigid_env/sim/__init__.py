@@ -1,0 +1,30 @@
+"""``rigid_env.sim``: a batched rigid-body simulator in numpy (no Gymnasium, no torch).
+
+Conventions (course notes): ``p = x + R r``; quaternions (x, y, z, w) with w = cos(θ/2);
+angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
+"""
+
+from . import rotation
+from .body import Body
+from .integrators import REGISTRY as _REGISTRY
+from .model import Ground, Model, Spring
+from .scene import DEFAULT_INTEGRATOR, INTEGRATORS, DivergenceError, Scene
+from .shapes import Box, Polyhedron, Sphere
+from .state import State
+
+__all__ = [
+    "Body",
+    "Box",
+    "DEFAULT_INTEGRATOR",
+    "DivergenceError",
+    "Ground",
+    "INTEGRATORS",
+    "Model",
+    "Polyhedron",
+    "Scene",
+    "Sphere",
+    "Spring",
+    "State",
+    "rotation",
+]
+del _REGISTRY

@@ -1,0 +1,81 @@
+"""Symplectic splitting with the free rotation solved exactly piece by piece.
+
+Dullweber, Leimkuhler & McLachlan, "Symplectic splitting methods for rigid body molecular
+dynamics", J. Chem. Phys. 107 (1997); McLachlan, "Explicit Lie–Poisson integration and the
+Euler equations", Phys. Rev. Lett. 71 (1993). The kinetic energy splits into
+H_i = Π_i² / (2 I_i) over the principal axes; each flow is an exact rotation of the body about
+axis i by Π_i h / I_i, with Π turned back by the same angle, so world L = R Π is kept to
+rounding, |Π| exactly, and energy stays bounded (the map is symplectic). Forces enter as half
+kicks around the drift (Strang / velocity Verlet): second order. ``splitting4`` composes it by
+Yoshida's triple jump (Phys. Lett. A 150, 1990) for fourth order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..rotation import quat_multiply, quat_rotate, quat_to_matrix
+from ..state import State
+from .common import kick, wrench
+
+# Symmetric sequence of (axis, fraction of h); axes are principal, moments ascending.
+_SEQUENCE = ((0, 0.5), (1, 0.5), (2, 1.0), (1, 0.5), (0, 0.5))
+
+
+def free_rotation(model, q, angular_momentum, h):
+    """Exact flows of H_0, H_1, H_2 composed symmetrically; returns (q, ω) after time h."""
+    moments = model.principal_moments
+    qp = q if model.principal_quat is None else quat_multiply(q, model.principal_quat)
+    conj = qp * np.array([-1.0, -1.0, -1.0, 1.0])
+    pi = quat_rotate(conj, angular_momentum)  # Π in principal body axes
+    p = [pi[..., 0], pi[..., 1], pi[..., 2]]
+    r = [qp[..., 0], qp[..., 1], qp[..., 2], qp[..., 3]]
+    for axis, fraction in _SEQUENCE:
+        j, k = (axis + 1) % 3, (axis + 2) % 3
+        phi = (fraction * h / moments[..., axis]) * p[axis]
+        c, s = np.cos(phi), np.sin(phi)
+        p[j], p[k] = c * p[j] + s * p[k], c * p[k] - s * p[j]
+        # qp ← qp ∘ (sin(φ/2) e_axis, cos(φ/2))
+        ch, sh = np.cos(0.5 * phi), np.sin(0.5 * phi)
+        r[axis], r[3], r[j], r[k] = (
+            ch * r[axis] + sh * r[3],
+            ch * r[3] - sh * r[axis],
+            ch * r[j] + sh * r[k],
+            ch * r[k] - sh * r[j],
+        )
+    qp = np.stack(r, axis=-1)
+    w = quat_rotate(qp, np.stack(p, axis=-1) / moments)
+    q = qp if model.principal_quat is None else quat_multiply(qp, model.principal_conj)
+    return q, w
+
+
+def _strang(model, x, q, v, w, dt, forces, force, torque):
+    inv_m = model.inv_mass[:, None]
+    f, t = wrench(forces, x, q, v, w, force, torque)
+    v = kick(v, 0.5 * dt, inv_m, f)
+    angular_momentum = model.apply_inertia(quat_to_matrix(q), w)
+    if t is not None:
+        angular_momentum = angular_momentum + 0.5 * dt * t
+    x = x + dt * v
+    q, w = free_rotation(model, q, angular_momentum, dt)
+    f, t = wrench(forces, x, q, v, w, force, torque)
+    v = kick(v, 0.5 * dt, inv_m, f)
+    if t is not None:
+        rot = quat_to_matrix(q)
+        w = w + 0.5 * dt * model.apply_inverse_inertia(rot, t)
+    return x, q, v, w
+
+
+def splitting(model, state, dt, forces, force, torque) -> State:
+    return State(*_strang(model, *state.arrays(), dt, forces, force, torque))
+
+
+_W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+_W0 = -(2.0 ** (1.0 / 3.0)) * _W1
+
+
+def splitting4(model, state, dt, forces, force, torque) -> State:
+    y = state.arrays()
+    for weight in (_W1, _W0, _W1):
+        y = _strang(model, *y, weight * dt, forces, force, torque)
+    return State(*y)

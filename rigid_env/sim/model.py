@@ -1,0 +1,104 @@
+"""The static model of a scene: bodies, ground, springs, as arrays with a body axis.
+
+Following Brax and MuJoCo, everything that does not change while stepping lives here; the
+dynamic arrays live in :class:`~rigid_env.sim.state.State`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .rotation import matrix_to_quat, matvec, rotate, rotate_inverse
+from .validation import finite_array, nonnegative_scalar, unit_interval
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The plane z = 0 with normal +z: Newton's restitution and Coulomb's friction coefficients."""
+
+    restitution: float = 0.0
+    friction: float = 0.5
+
+    def __post_init__(self):
+        object.__setattr__(self, "restitution", unit_interval(self.restitution, "restitution"))
+        object.__setattr__(self, "friction", nonnegative_scalar(self.friction, "friction"))
+
+
+@dataclass(frozen=True, eq=False)
+class Spring:
+    """A spring from the world point ``anchor`` to the body-fixed point ``attach`` of body ``body``.
+
+    Force on the body at the attachment point p, with d = p − anchor (SI units):
+    ``−stiffness (|d| − rest_length) d̂ − damping (ṗ · d̂) d̂``; with ``rest_length == 0`` the
+    direction-free limit ``−stiffness d − damping ṗ``. ``stiffness`` in N/m, ``damping`` in N s/m.
+    """
+
+    body: int
+    anchor: tuple
+    stiffness: float
+    damping: float = 0.0
+    rest_length: float = 0.0
+    attach: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if not isinstance(self.body, (int, np.integer)) or isinstance(self.body, bool):
+            raise ValueError(f"body must be a body index (int), got {self.body!r}")
+        object.__setattr__(self, "anchor", finite_array(self.anchor, "anchor", (3,)))
+        object.__setattr__(self, "attach", finite_array(self.attach, "attach", (3,)))
+        if self.anchor.shape != (3,) or self.attach.shape != (3,):
+            raise ValueError("anchor and attach must be 3-vectors")
+        object.__setattr__(self, "stiffness", nonnegative_scalar(self.stiffness, "stiffness"))
+        object.__setattr__(self, "damping", nonnegative_scalar(self.damping, "damping"))
+        object.__setattr__(self, "rest_length", nonnegative_scalar(self.rest_length, "rest_length"))
+
+
+class Model:
+    """Per-body arrays (leading axis = body) and the scene's force terms, built once."""
+
+    def __init__(self, bodies, gravity, ground, springs, linear_damping, angular_damping):
+        n = len(bodies)
+        self.bodies = tuple(bodies)
+        self.n_bodies = n
+        self.mass = np.array([b.mass for b in bodies])  # (n,)
+        self.inv_mass = 1.0 / self.mass
+        self.inertia = np.stack([b.inertia for b in bodies])  # (n, 3, 3), body axes
+        self.inv_inertia = np.linalg.inv(self.inertia)
+        diag = np.einsum("nii->ni", self.inertia)
+        # Primitives have diagonal body inertia: then M0⁻¹ applies elementwise (cheaper).
+        self.inertia_diagonal = diag if np.array_equal(self.inertia, diag[..., None] * np.eye(3)) else None
+        # Principal frame: inertia = P diag(moments) Pᵀ with det P = +1 (the splitting integrators
+        # rotate about principal axes).
+        moments, axes = np.linalg.eigh(self.inertia)
+        axes[..., :, 2] *= np.sign(np.linalg.det(axes))[..., None]
+        if self.inertia_diagonal is not None:
+            moments, axes = self.inertia_diagonal, np.broadcast_to(np.eye(3), axes.shape)
+        self.principal_moments = moments  # (n, 3)
+        self.principal_axes = axes  # (n, 3, 3)
+        if np.array_equal(axes, np.broadcast_to(np.eye(3), axes.shape)):
+            self.principal_quat = self.principal_conj = None  # body axes are principal
+        else:
+            self.principal_quat = matrix_to_quat(axes)
+            self.principal_conj = self.principal_quat * np.array([-1.0, -1.0, -1.0, 1.0])
+        self.gravity = None if gravity is None else finite_array(gravity, "gravity", (3,))
+        if self.gravity is not None and self.gravity.shape != (3,):
+            raise ValueError(f"gravity must be a 3-vector, got shape {self.gravity.shape}")
+        self.ground = ground
+        self.springs = tuple(springs)
+        self.linear_damping = nonnegative_scalar(linear_damping, "linear_damping")
+        self.angular_damping = nonnegative_scalar(angular_damping, "angular_damping")
+
+    def apply_inverse_inertia(self, rot: np.ndarray, vec: np.ndarray) -> np.ndarray:
+        """``M⁻¹ vec = R M0⁻¹ Rᵀ vec`` (notes: inertia in world axes), vec in world axes."""
+        local = rotate_inverse(rot, vec)
+        if self.inertia_diagonal is not None:
+            return rotate(rot, local / self.inertia_diagonal)
+        return rotate(rot, matvec(self.inv_inertia, local))
+
+    def apply_inertia(self, rot: np.ndarray, vec: np.ndarray) -> np.ndarray:
+        """``M vec = R M0 Rᵀ vec``: e.g. the world angular momentum ``L = M ω``."""
+        local = rotate_inverse(rot, vec)
+        if self.inertia_diagonal is not None:
+            return rotate(rot, local * self.inertia_diagonal)
+        return rotate(rot, matvec(self.inertia, local))
