@@ -61,7 +61,9 @@ def springs(model: Model) -> Term:
         length = np.linalg.norm(d, axis=-1, keepdims=True)
         unit = d / np.where(length > 0, length, 1.0)
         stretched = np.where(has_rest, k * (length - rest) * unit, k * d)
-        damped = np.where(has_rest, c * np.sum(pdot * unit, axis=-1, keepdims=True) * unit, c * pdot)
+        damped = np.where(
+            has_rest, c * np.sum(pdot * unit, axis=-1, keepdims=True) * unit, c * pdot
+        )
         f = -(stretched + damped)
         t = cross(arm, f)
         return (

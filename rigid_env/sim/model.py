@@ -67,7 +67,9 @@ class Model:
         self.inv_inertia = np.linalg.inv(self.inertia)
         diag = np.einsum("nii->ni", self.inertia)
         # Primitives have diagonal body inertia: then M0⁻¹ applies elementwise (cheaper).
-        self.inertia_diagonal = diag if np.array_equal(self.inertia, diag[..., None] * np.eye(3)) else None
+        self.inertia_diagonal = (
+            diag if np.array_equal(self.inertia, diag[..., None] * np.eye(3)) else None
+        )
         # Principal frame: inertia = P diag(moments) Pᵀ with det P = +1 (the splitting integrators
         # rotate about principal axes).
         moments, axes = np.linalg.eigh(self.inertia)

@@ -99,8 +99,16 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
     pivots = np.stack((1 + 2 * m00 - trace, 1 + 2 * m11 - trace, 1 + 2 * m22 - trace, 1 + trace))
     best = np.argmax(pivots, axis=0)
     s = np.sqrt(np.maximum(np.take_along_axis(pivots, best[None], axis=0)[0], 1e-300))
-    d21, d02, d10 = m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]
-    s21, s02, s10 = m[..., 2, 1] + m[..., 1, 2], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 0] + m[..., 0, 1]
+    d21, d02, d10 = (
+        m[..., 2, 1] - m[..., 1, 2],
+        m[..., 0, 2] - m[..., 2, 0],
+        m[..., 1, 0] - m[..., 0, 1],
+    )
+    s21, s02, s10 = (
+        m[..., 2, 1] + m[..., 1, 2],
+        m[..., 0, 2] + m[..., 2, 0],
+        m[..., 1, 0] + m[..., 0, 1],
+    )
     candidates = np.stack(
         (
             np.stack((s, s10 / s, s02 / s, d21 / s), axis=-1),
@@ -125,7 +133,9 @@ def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
     theta = np.linalg.norm(rotation_vector, axis=-1, keepdims=True)
     half = 0.5 * theta
     # sin(θ/2)/θ, with its Taylor series near zero so that tiny rotations keep full precision.
-    sinc = np.where(theta > 1e-4, np.sin(half) / np.where(theta > 1e-4, theta, 1.0), 0.5 - theta**2 / 48)
+    sinc = np.where(
+        theta > 1e-4, np.sin(half) / np.where(theta > 1e-4, theta, 1.0), 0.5 - theta**2 / 48
+    )
     return np.concatenate((sinc * rotation_vector, np.cos(half)), axis=-1)
 
 

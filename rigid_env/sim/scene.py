@@ -171,9 +171,8 @@ class Scene:
         return shape
 
     def _diagnose(self, state, torque, force):
-        for name, arr in zip(
-            ("position", "orientation", "linear_velocity", "angular_velocity"), state.arrays()
-        ):
+        names = ("position", "orientation", "linear_velocity", "angular_velocity")
+        for name, arr in zip(names, state.arrays(), strict=True):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"state.{name} contains NaN or infinity")
         for name, arr in (("torque", torque), ("force", force)):

@@ -1,13 +1,13 @@
 """Integrators by name. Each is ``step(model, state, dt, forces, force, torque) -> State``.
 
-| name            | order | conserves (torque-free)                  | cost / step        | fails where                       |
-|-----------------|-------|------------------------------------------|--------------------|-----------------------------------|
-| `euler`         | 1     | world L exactly; energy grows            | 1 matrix repair    | energy drift ∝ Δt; fast spin      |
-| `euler_quat`    | 1     | world L exactly; energy grows            | cheapest           | as `euler`                        |
-| `rk4`           | 4     | nothing exactly; drift O(Δt⁴)            | 4 force evaluations| drifts on long runs; stiff springs|
-| `splitting`     | 2     | world L and |L| exactly; energy bounded  | 5 axis rotations   | phase error O(Δt²)                |
-| `splitting4`    | 4     | as `splitting`                           | 3 × `splitting`    | unstable at very large ω Δt       |
-| `implicit_gyro` | 1     | |L| decays slightly; never blows up      | one 3×3 solve      | damps fast spin (energy loss)     |
+| name            | order | torque-free body keeps            | cost / step         | fails where            |
+|-----------------|-------|-----------------------------------|---------------------|------------------------|
+| `euler`         | 1     | world L exactly; energy grows     | matrix + repair     | energy drift ∝ Δt      |
+| `euler_quat`    | 1     | world L exactly; energy grows     | cheapest            | as `euler`             |
+| `rk4`           | 4     | nothing exactly; drift O(Δt⁴)     | 4 force evaluations | long runs, stiff terms |
+| `splitting`     | 2     | world L exactly; energy bounded   | 5 axis rotations    | phase error O(Δt²)     |
+| `splitting4`    | 4     | as `splitting`                    | 3 × `splitting`     | large ω Δt             |
+| `implicit_gyro` | 1     | never blows up; loses energy      | one 3×3 solve       | damps fast spin        |
 """
 
 from __future__ import annotations

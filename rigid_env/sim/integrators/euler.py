@@ -10,8 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import cross, gram_schmidt, matrix_to_quat, quat_multiply, quat_normalize
-from ..rotation import quat_to_matrix
+from ..rotation import (
+    cross,
+    gram_schmidt,
+    matrix_to_quat,
+    quat_multiply,
+    quat_normalize,
+    quat_to_matrix,
+)
 from ..state import State
 from .common import align_sign, kick, wrench
 

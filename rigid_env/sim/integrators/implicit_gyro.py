@@ -11,8 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import cross, matvec, quat_exp, quat_multiply, quat_to_matrix, rotate
-from ..rotation import rotate_inverse, skew
+from ..rotation import (
+    cross,
+    matvec,
+    quat_exp,
+    quat_multiply,
+    quat_to_matrix,
+    rotate,
+    rotate_inverse,
+    skew,
+)
 from ..state import State
 from .common import kick, wrench
 

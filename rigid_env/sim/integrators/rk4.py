@@ -36,7 +36,8 @@ def rk4(model, state, dt, forces, force, torque) -> State:
     k3 = derivative(*(y + 0.5 * dt * k for y, k in zip(y0, k2, strict=True)))
     k4 = derivative(*(y + dt * k for y, k in zip(y0, k3, strict=True)))
     x, q, v, angular_momentum = (
-        y + dt / 6 * (a + 2 * b + 2 * c + d) for y, a, b, c, d in zip(y0, k1, k2, k3, k4, strict=True)
+        y + dt / 6 * (a + 2 * b + 2 * c + d)
+        for y, a, b, c, d in zip(y0, k1, k2, k3, k4, strict=True)
     )
     q = quat_normalize(q)
     return State(x, q, v, model.apply_inverse_inertia(quat_to_matrix(q), angular_momentum))
