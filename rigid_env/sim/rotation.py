@@ -150,9 +150,13 @@ def quat_log(q: np.ndarray) -> np.ndarray:
 
 
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Geodesic angle in [0, π] between the rotations of two unit quaternions."""
-    dot = np.abs(np.sum(a * b, axis=-1))
-    return 2 * np.arccos(np.clip(dot, 0.0, 1.0))
+    """Geodesic angle in [0, π] between the rotations of two unit quaternions.
+
+    2 atan2(|vec(a* ∘ b)|, |scalar(a* ∘ b)|): full relative precision at small angles, where
+    2 arccos(|a·b|) resolves nothing below ~4e-8 rad (arccos near 1).
+    """
+    rel = quat_multiply(quat_conjugate(a), b)
+    return 2 * np.arctan2(np.linalg.norm(rel[..., :3], axis=-1), np.abs(rel[..., 3]))
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
