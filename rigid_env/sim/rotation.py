@@ -150,9 +150,13 @@ def quat_log(q: np.ndarray) -> np.ndarray:
 
 
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Geodesic angle in [0, π] between the rotations of two unit quaternions."""
-    dot = np.abs(np.sum(a * b, axis=-1))
-    return 2 * np.arccos(np.clip(dot, 0.0, 1.0))
+    """Geodesic angle in [0, π] between the rotations of two unit quaternions.
+
+    ``2 atan2(|vec(a⁻¹ ∘ b)|, |w(a⁻¹ ∘ b)|)``: unlike ``2 arccos|a·b|`` it resolves angles down to
+    rounding (arccos loses half the digits near 1).
+    """
+    d = quat_multiply(quat_conjugate(a), b)
+    return 2 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
