@@ -152,11 +152,11 @@ def quat_log(q: np.ndarray) -> np.ndarray:
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Geodesic angle in [0, π] between the rotations of two unit quaternions.
 
-    2 atan2(|vec(a* ∘ b)|, |scalar(a* ∘ b)|): full relative precision at small angles, where
-    2 arccos(|a·b|) resolves nothing below ~4e-8 rad (arccos near 1).
+    ``2 atan2(|vec(a⁻¹ ∘ b)|, |w(a⁻¹ ∘ b)|)``: unlike ``2 arccos|a·b|`` it resolves angles down to
+    rounding (arccos loses half the digits near 1).
     """
-    rel = quat_multiply(quat_conjugate(a), b)
-    return 2 * np.arctan2(np.linalg.norm(rel[..., :3], axis=-1), np.abs(rel[..., 3]))
+    d = quat_multiply(quat_conjugate(a), b)
+    return 2 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
