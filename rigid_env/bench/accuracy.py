@@ -24,7 +24,7 @@ import numpy as np
 from rigid_env import sim
 from rigid_env.sim.rotation import quat_angle
 
-from . import problems, report
+from . import peers, problems, report
 
 THEORETICAL_ORDER = {
     "euler": 1,
@@ -179,7 +179,20 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             "observed_on": scene,
             "by_scene": per,
         }
+    peer_orders = {}
+    if peers.available():
+        dzh = next((p for p in problem_list if p.name == "dzhanibekov"), None)
+        if dzh is not None:
+            if progress:
+                progress("accuracy MuJoCo dzhanibekov")
+            peer = peers.accuracy(dzh, cfg["dts"], cfg["duration"], cfg["checkpoints"], BATCH)
+            records += peer
+            for name in peers.INTEGRATORS:
+                rows = [r for r in peer if r["integrator"] == name and r["batch"] == 1]
+                peer_orders[name] = {"dzhanibekov": observed_order(
+                    [r["dt"] for r in rows], [r["error"] for r in rows])}
     return {"duration_s": cfg["duration"], "records": records, "observed_order": summary,
+            "peer_orders": peer_orders, "peers": peers.status(),
             "targets": cheapest_for_targets(records, "dzhanibekov")}
 
 
@@ -226,8 +239,13 @@ def table(result: dict) -> str:
         ("integrator", "integrator", ""), ("theoretical", "theoretical", "d"),
         ("observed", "observed", ".2f"), ("fitted on", "observed_on", ""),
         *[(s, f"order_{s}", ".2f") for s in ORDER_SCENES]])
-    if result.get("peers"):
-        out += ["", result["peers"]]
+    out += ["", f"MuJoCo: {result['peers']}"]
+    if result["peer_orders"]:
+        out += ["", report.markdown_table(
+            [{"integrator": k, "theoretical": peers.THEORETICAL_ORDER[k], **v}
+             for k, v in result["peer_orders"].items()],
+            [("MuJoCo integrator", "integrator", ""), ("theoretical", "theoretical", "d"),
+             ("observed (dzhanibekov)", "dzhanibekov", ".2f")])]
     return "\n".join(out)
 
 
