@@ -86,8 +86,12 @@ def build_terms(model: Model) -> tuple[tuple[str, Term], ...]:
     return tuple(terms)
 
 
-def combine(terms: tuple[tuple[str, Term], ...]):
-    """One function ``(x, q, v, w, F_applied, T_applied) -> (F, T)`` summing the terms."""
+def combine(terms: tuple[tuple[str, Term], ...], velocity_dependent: bool = True):
+    """One function ``(x, q, v, w, F_applied, T_applied) -> (F, T)`` summing the terms.
+
+    ``wrench.velocity_dependent`` tells integrators whether the forces depend on v or ω (damping),
+    which a symmetric splitting must treat with a corrected final half kick to stay 2nd order.
+    """
     fns = tuple(fn for _, fn in terms)
 
     def wrench(x, q, v, w, force, torque):
@@ -99,4 +103,11 @@ def combine(terms: tuple[tuple[str, Term], ...]):
                 torque = t if torque is None else torque + t
         return force, torque
 
+    wrench.velocity_dependent = velocity_dependent
     return wrench
+
+
+def is_velocity_dependent(model: Model) -> bool:
+    return bool(
+        model.linear_damping or model.angular_damping or any(s.damping for s in model.springs)
+    )

@@ -71,7 +71,9 @@ class Scene:
         self.integrator = integrator
         self.model = Model(bodies, gravity, ground, springs, linear_damping, angular_damping)
         terms = forces.build_terms(self.model)
-        self._forces = forces.combine(terms) if terms else None
+        self._forces = (
+            forces.combine(terms, forces.is_velocity_dependent(self.model)) if terms else None
+        )
         self._integrate = REGISTRY[integrator]
         self._post_stages: tuple = ()
         self.stages: tuple[str, ...] = (

@@ -16,6 +16,7 @@ from ..rotation import (
     matvec,
     quat_exp,
     quat_multiply,
+    quat_normalize,
     quat_to_matrix,
     rotate,
     rotate_inverse,
@@ -49,5 +50,5 @@ def implicit_gyro(model, state, dt, forces, force, torque) -> State:
     jac = inertia + dt * (omega_star_i - skew(i_omega))
     omega = omega - _solve3(jac, residual)
     w = rotate(rot, omega)
-    q = quat_multiply(quat_exp(dt * w), q)
+    q = quat_normalize(quat_multiply(quat_exp(dt * w), q))
     return State(x + dt * v, q, v, w)

@@ -44,6 +44,9 @@ def free_rotation(model, q, angular_momentum, h):
             ch * r[k] - sh * r[j],
         )
     qp = np.stack(r, axis=-1)
+    # Unit products drift from |q| = 1 by rounding; unrenormalised, every later conversion would
+    # scale L by |q|⁴ and the drift would grow linearly with the step count.
+    qp = qp / np.linalg.norm(qp, axis=-1, keepdims=True)
     w = quat_rotate(qp, np.stack(p, axis=-1) / moments)
     q = qp if model.principal_quat is None else quat_multiply(qp, model.principal_conj)
     return q, w
@@ -58,12 +61,24 @@ def _strang(model, x, q, v, w, dt, forces, force, torque):
         angular_momentum = angular_momentum + 0.5 * dt * t
     x = x + dt * v
     q, w = free_rotation(model, q, angular_momentum, dt)
-    f, t = wrench(forces, x, q, v, w, force, torque)
-    v = kick(v, 0.5 * dt, inv_m, f)
+    if f is None and t is None:
+        return x, q, v, w
+    rot = quat_to_matrix(q)
+    v_end, w_end = _half_kick(model, rot, x, q, v, w, v, w, dt, forces, force, torque)
+    if forces is not None and forces.velocity_dependent:
+        # The closing half kick should see the end-of-step velocity: one corrector pass
+        # (Heun) restores second order for damping, which a plain kick would lose.
+        v_end, w_end = _half_kick(model, rot, x, q, v, w, v_end, w_end, dt, forces, force, torque)
+    return x, q, v_end, w_end
+
+
+def _half_kick(model, rot, x, q, v, w, v_eval, w_eval, dt, forces, force, torque):
+    """(v, ω) + ½ Δt (F/m, M⁻¹ T), with the forces evaluated at (v_eval, ω_eval)."""
+    f, t = wrench(forces, x, q, v_eval, w_eval, force, torque)
+    v = kick(v, 0.5 * dt, model.inv_mass[:, None], f)
     if t is not None:
-        rot = quat_to_matrix(q)
         w = w + 0.5 * dt * model.apply_inverse_inertia(rot, t)
-    return x, q, v, w
+    return v, w
 
 
 def splitting(model, state, dt, forces, force, torque) -> State:
