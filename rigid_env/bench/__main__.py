@@ -29,7 +29,9 @@ def run_command(command: str, preset: str, out: Path, progress=None) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rigid_env.bench", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m rigid_env.bench", description=__doc__.split("\n")[0]
+    )
     parser.add_argument("command", choices=(*COMMANDS, "all"))
     parser.add_argument("--quick", action="store_true", help="each command in under a minute")
     parser.add_argument("--preset", choices=("full", "quick", "tiny"), help="overrides --quick")

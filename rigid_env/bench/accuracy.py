@@ -45,8 +45,11 @@ PRESETS = {
     "full": dict(
         duration=20.0,
         checkpoints=20,
-        dts={1: (0.02, 0.01, 0.005, 0.002, 0.001), 2: (0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
-             4: (0.05, 0.04, 0.025, 0.02, 0.01, 0.005)},
+        dts={
+            1: (0.02, 0.01, 0.005, 0.002, 0.001),
+            2: (0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
+            4: (0.05, 0.04, 0.025, 0.02, 0.01, 0.005),
+        },
         batch_steps=100,
     ),
     "quick": dict(
@@ -73,8 +76,9 @@ def _reference_state(scene: sim.Scene, initial: dict, ref: dict) -> sim.State:
     return scene.initial_state(**fields, batch_shape=(len(next(iter(ref.values()))),))
 
 
-def run(problem: problems.Problem, integrator: str, dt: float, duration: float,
-        checkpoints: int) -> dict:
+def run(
+    problem: problems.Problem, integrator: str, dt: float, duration: float, checkpoints: int
+) -> dict:
     """One scored batch-1 run; returns the error figures and the batch-1 wall time."""
     scene = problem.build(integrator, dt)
     n_steps = int(round(duration / dt))
@@ -119,8 +123,9 @@ def _relative(got: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(diff) / scale) if scale > 0 else float(np.max(diff))
 
 
-def batch_wall(problem: problems.Problem, integrator: str, dt: float, steps: int,
-               batch: int = BATCH) -> float:
+def batch_wall(
+    problem: problems.Problem, integrator: str, dt: float, steps: int, batch: int = BATCH
+) -> float:
     """Wall seconds per simulated second for ``batch`` copies (best of three timings)."""
     scene = problem.build(integrator, dt)
     state = scene.initial_state(**problem.initial, batch_shape=(batch,))
@@ -137,8 +142,11 @@ def batch_wall(problem: problems.Problem, integrator: str, dt: float, steps: int
 
 def observed_order(dts, errors) -> float | None:
     """Slope of log error vs log dt over the asymptotic points (None if fewer than two)."""
-    pts = [(d, e) for d, e in zip(dts, errors, strict=True)
-           if e is not None and ROUNDING_FLOOR < e < ASYMPTOTIC_MAX]
+    pts = [
+        (d, e)
+        for d, e in zip(dts, errors, strict=True)
+        if e is not None and ROUNDING_FLOOR < e < ASYMPTOTIC_MAX
+    ]
     if len(pts) < 2:
         return None
     x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
@@ -159,8 +167,14 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
                 if progress:
                     progress(f"accuracy {problem.name} {integrator} dt={dt}")
                 res = run(problem, integrator, dt, cfg["duration"], cfg["checkpoints"])
-                base = {"scene": problem.name, "engine": "rigid_env", "integrator": integrator,
-                        "dt": dt, "duration_s": cfg["duration"], "error_kind": problem.main_error}
+                base = {
+                    "scene": problem.name,
+                    "engine": "rigid_env",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "duration_s": cfg["duration"],
+                    "error_kind": problem.main_error,
+                }
                 records.append({**base, "batch": 1, **res})
                 errors.append(res.get("error"))
                 if res.get("error") is not None:
@@ -189,29 +203,40 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             records += peer
             for name in peers.INTEGRATORS:
                 rows = [r for r in peer if r["integrator"] == name and r["batch"] == 1]
-                peer_orders[name] = {"dzhanibekov": observed_order(
-                    [r["dt"] for r in rows], [r["error"] for r in rows])}
-    return {"duration_s": cfg["duration"], "records": records, "observed_order": summary,
-            "peer_orders": peer_orders, "peers": peers.status(),
-            "targets": cheapest_for_targets(records, "dzhanibekov")}
+                peer_orders[name] = {
+                    "dzhanibekov": observed_order(
+                        [r["dt"] for r in rows], [r["error"] for r in rows]
+                    )
+                }
+    return {
+        "duration_s": cfg["duration"],
+        "records": records,
+        "observed_order": summary,
+        "peer_orders": peer_orders,
+        "peers": peers.status(),
+        "targets": cheapest_for_targets(records, "dzhanibekov"),
+    }
 
 
 def cheapest_for_targets(records, scene: str, targets=TARGETS) -> list[dict]:
     """For each target error, the measured (integrator, dt) reaching it at least batch-1 cost."""
     rows = []
-    pool = [r for r in records if r["scene"] == scene and r["batch"] == 1
-            and r.get("error") is not None]
+    pool = [
+        r for r in records if r["scene"] == scene and r["batch"] == 1 and r.get("error") is not None
+    ]
     for target in targets:
         ok = [r for r in pool if r["error"] <= target]
         best = min(ok, key=lambda r: r["wall_s_per_sim_s"], default=None)
-        rows.append({
-            "target_rad": target,
-            "engine": best and best["engine"],
-            "integrator": best and best["integrator"],
-            "dt": best and best["dt"],
-            "error": best and best["error"],
-            "wall_s_per_sim_s": best and best["wall_s_per_sim_s"],
-        })
+        rows.append(
+            {
+                "target_rad": target,
+                "engine": best and best["engine"],
+                "integrator": best and best["integrator"],
+                "dt": best and best["dt"],
+                "error": best and best["error"],
+                "wall_s_per_sim_s": best and best["wall_s_per_sim_s"],
+            }
+        )
     return rows
 
 
@@ -224,10 +249,17 @@ def table(result: dict) -> str:
         "Cheapest measured integrator and dt reaching each orientation error on the "
         f"Dzhanibekov problem after {result['duration_s']:g} s (batch 1):",
         "",
-        report.markdown_table(result["targets"], [
-            ("target (rad)", "target_rad", ".0e"), ("engine", "engine", ""),
-            ("integrator", "integrator", ""), ("dt (s)", "dt", "g"),
-            ("error (rad)", "error", ".2e"), ("wall s / sim s", "wall_s_per_sim_s", ".2e")]),
+        report.markdown_table(
+            result["targets"],
+            [
+                ("target (rad)", "target_rad", ".0e"),
+                ("engine", "engine", ""),
+                ("integrator", "integrator", ""),
+                ("dt (s)", "dt", "g"),
+                ("error (rad)", "error", ".2e"),
+                ("wall s / sim s", "wall_s_per_sim_s", ".2e"),
+            ],
+        ),
         "",
         "Observed order (slope of log error vs log dt in the asymptotic range):",
         "",
@@ -235,17 +267,32 @@ def table(result: dict) -> str:
     ]
     for row in orders:
         row.update({f"order_{s}": v for s, v in row["by_scene"].items()})
-    out[-1] = report.markdown_table(orders, [
-        ("integrator", "integrator", ""), ("theoretical", "theoretical", "d"),
-        ("observed", "observed", ".2f"), ("fitted on", "observed_on", ""),
-        *[(s, f"order_{s}", ".2f") for s in ORDER_SCENES]])
+    out[-1] = report.markdown_table(
+        orders,
+        [
+            ("integrator", "integrator", ""),
+            ("theoretical", "theoretical", "d"),
+            ("observed", "observed", ".2f"),
+            ("fitted on", "observed_on", ""),
+            *[(s, f"order_{s}", ".2f") for s in ORDER_SCENES],
+        ],
+    )
     out += ["", f"MuJoCo: {result['peers']}"]
     if result["peer_orders"]:
-        out += ["", report.markdown_table(
-            [{"integrator": k, "theoretical": peers.THEORETICAL_ORDER[k], **v}
-             for k, v in result["peer_orders"].items()],
-            [("MuJoCo integrator", "integrator", ""), ("theoretical", "theoretical", "d"),
-             ("observed (dzhanibekov)", "dzhanibekov", ".2f")])]
+        out += [
+            "",
+            report.markdown_table(
+                [
+                    {"integrator": k, "theoretical": peers.THEORETICAL_ORDER[k], **v}
+                    for k, v in result["peer_orders"].items()
+                ],
+                [
+                    ("MuJoCo integrator", "integrator", ""),
+                    ("theoretical", "theoretical", "d"),
+                    ("observed (dzhanibekov)", "dzhanibekov", ".2f"),
+                ],
+            ),
+        ]
     return "\n".join(out)
 
 
@@ -258,17 +305,31 @@ def plot(result: dict, path) -> None:
     for ax, scene in zip(axes, scenes, strict=True):
         rows = [r for r in records if r["scene"] == scene]
         for key in dict.fromkeys((r["engine"], r["integrator"]) for r in rows):
-            line = sorted((r for r in rows if (r["engine"], r["integrator"]) == key),
-                          key=lambda r: r["wall_s_per_sim_s"])
-            p = orders.get(key[1], {}).get("by_scene", {}).get(scene) if key[0] == "rigid_env" \
+            line = sorted(
+                (r for r in rows if (r["engine"], r["integrator"]) == key),
+                key=lambda r: r["wall_s_per_sim_s"],
+            )
+            p = (
+                orders.get(key[1], {}).get("by_scene", {}).get(scene)
+                if key[0] == "rigid_env"
                 else result.get("peer_orders", {}).get(key[1], {}).get(scene)
+            )
             label = (key[1] if key[0] == "rigid_env" else f"MuJoCo {key[1]}") + (
-                f"  (p≈{p:.2f})" if p is not None else "")
-            ax.loglog([r["wall_s_per_sim_s"] for r in line], [r["error"] for r in line],
-                      "o-" if key[0] == "rigid_env" else "s--", ms=3, label=label)
+                f"  (p≈{p:.2f})" if p is not None else ""
+            )
+            ax.loglog(
+                [r["wall_s_per_sim_s"] for r in line],
+                [r["error"] for r in line],
+                "o-" if key[0] == "rigid_env" else "s--",
+                ms=3,
+                label=label,
+            )
         kind = rows[0]["error_kind"]
-        ax.set(title=scene, xlabel="wall s per simulated s (batch 1)",
-               ylabel=f"max {kind} error ({'rad' if kind == 'orientation' else 'm'})")
+        ax.set(
+            title=scene,
+            xlabel="wall s per simulated s (batch 1)",
+            ylabel=f"max {kind} error ({'rad' if kind == 'orientation' else 'm'})",
+        )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"rigid_env accuracy vs cost ({result['duration_s']:g} s runs)")

@@ -42,7 +42,7 @@ def free_body_model(integrator: str, dt: float):
     moments = np.diag(scenes.box().inertia)
     xml = f"""<mujoco><option gravity="0 0 0" timestep="{dt:.17g}" integrator="{integrator}"/>
       <worldbody><body><freejoint/>
-        <inertial pos="0 0 0" mass="{scenes.BOX_MASS:.17g}" diaginertia="{' '.join(f'{m:.17g}' for m in moments)}"/>
+        <inertial pos="0 0 0" mass="{scenes.BOX_MASS:.17g}" diaginertia="{" ".join(f"{m:.17g}" for m in moments)}"/>
       </body></worldbody></mujoco>"""
     return mujoco.MjModel.from_xml_string(xml)
 
@@ -84,16 +84,24 @@ def speed(batches, block_s: float, dt: float, progress=None) -> list[dict]:
             nstep = max(4, int(block_s / max(probe / 4, 1e-8)))
             out = np.empty((batch, nstep, init.size))
             best = min(_run(model, init, nstep, batch, out)[1] for _ in range(3)) / nstep
-            records.append({
-                "scene": "free_body", "engine": "mujoco", "integrator": integrator, "dt": dt,
-                "batch": batch, "bodies": batch, "s_per_step": best,
-                "body_steps_per_s": batch / best,
-            })
+            records.append(
+                {
+                    "scene": "free_body",
+                    "engine": "mujoco",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "batch": batch,
+                    "bodies": batch,
+                    "s_per_step": best,
+                    "body_steps_per_s": batch / best,
+                }
+            )
     return records
 
 
-def accuracy(problem, dts_by_order: dict, duration: float, checkpoints: int,
-             batch: int) -> list[dict]:
+def accuracy(
+    problem, dts_by_order: dict, duration: float, checkpoints: int, batch: int
+) -> list[dict]:
     """MuJoCo's errors on a torque-free problem, scored like rigid_env's (max over checkpoints)."""
     omega = np.asarray(problem.initial["angular_velocity"], float)
     records = []
@@ -110,11 +118,22 @@ def accuracy(problem, dts_by_order: dict, duration: float, checkpoints: int,
             ref = problem.reference(marks * dt)
             finite = bool(np.all(np.isfinite(s)))
             err = float(np.max(quat_angle(q, ref["orientation"]))) if finite else None
-            base = {"scene": problem.name, "engine": "mujoco", "integrator": integrator,
-                    "dt": dt, "duration_s": duration, "error_kind": "orientation",
-                    "orientation_error": err, "error": err, "diverged": not finite,
-                    "angular_velocity_error": float(np.max(np.linalg.norm(
-                        w - ref["angular_velocity"], axis=-1))) if finite else None}
+            base = {
+                "scene": problem.name,
+                "engine": "mujoco",
+                "integrator": integrator,
+                "dt": dt,
+                "duration_s": duration,
+                "error_kind": "orientation",
+                "orientation_error": err,
+                "error": err,
+                "diverged": not finite,
+                "angular_velocity_error": float(
+                    np.max(np.linalg.norm(w - ref["angular_velocity"], axis=-1))
+                )
+                if finite
+                else None,
+            }
             records.append({**base, "batch": 1, "wall_s_per_sim_s": wall / (n * dt)})
             steps = min(n, max(10, 2000 // batch * 10))
             _, wb = _run(model, init, steps, batch)

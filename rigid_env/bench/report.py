@@ -27,8 +27,10 @@ def fmt(value, spec: str = ".3g") -> str:
 
 def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
     """``columns`` are (header, key, format spec); a missing value prints as "—"."""
-    lines = ["| " + " | ".join(h for h, _, _ in columns) + " |",
-             "|" + "|".join("---" for _ in columns) + "|"]
+    lines = [
+        "| " + " | ".join(h for h, _, _ in columns) + " |",
+        "|" + "|".join("---" for _ in columns) + "|",
+    ]
     for row in rows:
         lines.append("| " + " | ".join(fmt(row.get(k), f) for _, k, f in columns) + " |")
     return "\n".join(lines)
@@ -56,8 +58,11 @@ def write_json(path: Path, command: str, preset: str, payload: dict) -> None:
         "command": command,
         "preset": preset,
         "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
-        "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                    "processor": platform.processor() or platform.machine()},
+        "machine": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "processor": platform.processor() or platform.machine(),
+        },
         **payload,
     }
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -25,10 +25,20 @@ from rigid_env.sim.integrators import REGISTRY
 from . import peers, report, scenes
 
 PRESETS = {
-    "full": dict(batches=(1, 64, 1024, 16384), block_s=0.25, repeats=5,
-                 env_batches=(1, 64, 1024, 4096), env_steps=200),
-    "quick": dict(batches=(1, 64, 1024, 16384), block_s=0.04, repeats=3,
-                  env_batches=(1, 64, 1024, 4096), env_steps=30),
+    "full": dict(
+        batches=(1, 64, 1024, 16384),
+        block_s=0.25,
+        repeats=5,
+        env_batches=(1, 64, 1024, 4096),
+        env_steps=200,
+    ),
+    "quick": dict(
+        batches=(1, 64, 1024, 16384),
+        block_s=0.04,
+        repeats=3,
+        env_batches=(1, 64, 1024, 4096),
+        env_steps=30,
+    ),
     "tiny": dict(batches=(1, 64), block_s=0.005, repeats=2, env_batches=(1, 64), env_steps=5),
 }
 DT = 0.01
@@ -53,16 +63,19 @@ def _best_time(fn, state, block_s: float, repeats: int) -> float:
 def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
     """(name, factory(integrator, dt), initial state kwargs, integrators) for every scene here."""
     cases = [
-        ("free_body", scenes.free_body, {"angular_velocity": scenes.TUMBLE_OMEGA},
-         sim.INTEGRATORS),
-        ("stiff_spring", lambda i, dt: scenes.stiff_spring(i, dt, 1.0),
-         {"position": (0.1, 0.0, 0.0)},
-         tuple(i for i in ("splitting", "implicit_gyro", "implicit") if i in sim.INTEGRATORS)),
+        ("free_body", scenes.free_body, {"angular_velocity": scenes.TUMBLE_OMEGA}, sim.INTEGRATORS),
+        (
+            "stiff_spring",
+            lambda i, dt: scenes.stiff_spring(i, dt, 1.0),
+            {"position": (0.1, 0.0, 0.0)},
+            tuple(i for i in ("splitting", "implicit_gyro", "implicit") if i in sim.INTEGRATORS),
+        ),
     ]
     landing = scenes.optional_scene("landing_scene")
     if landing is not None:
-        cases.append(("landing", lambda i, dt: landing(integrator=i, dt=dt), {},
-                      (sim.DEFAULT_INTEGRATOR,)))
+        cases.append(
+            ("landing", lambda i, dt: landing(integrator=i, dt=dt), {}, (sim.DEFAULT_INTEGRATOR,))
+        )
     return cases
 
 
@@ -93,17 +106,26 @@ def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) 
 
     integrate(model, state, dt, counted if terms else None, None, None)
     total = _best_time(scene.step, state, block_s, repeats)
-    rows = [{"stage": "integrate (core, no forces)",
-             "s": _best_time(lambda s: integrate(model, s, dt, None, None, None), state,
-                             block_s, repeats)}]
+    rows = [
+        {
+            "stage": "integrate (core, no forces)",
+            "s": _best_time(
+                lambda s: integrate(model, s, dt, None, None, None), state, block_s, repeats
+            ),
+        }
+    ]
     x, q, v, w = state.arrays()
     for name, term in terms:
         per_call = _best_time(lambda s, t=term: (t(x, q, v, w), s)[1], state, block_s, repeats)
         rows.append({"stage": f"{name} (×{calls[0]} per step)", "s": per_call * calls[0]})
     new = scene.step(state)
     for name, stage in getattr(scene, "_post_stages", ()):
-        rows.append({"stage": name, "s": _best_time(lambda s, f=stage: (f(state, new), s)[1],
-                                                    state, block_s, repeats)})
+        rows.append(
+            {
+                "stage": name,
+                "s": _best_time(lambda s, f=stage: (f(state, new), s)[1], state, block_s, repeats),
+            }
+        )
     rows.append({"stage": "Scene.step overhead (checks)", "s": total - sum(r["s"] for r in rows)})
     rows.append({"stage": "step total", "s": total})
     return rows
@@ -132,16 +154,28 @@ def measure(preset: str = "full", progress=None) -> dict:
                 scene = factory(integrator, DT)
                 state = _initial(scene, initial, batch)
                 t = _best_time(scene.step, state, cfg["block_s"], cfg["repeats"])
-                records.append({
-                    "scene": name, "engine": "rigid_env", "integrator": integrator, "dt": DT,
-                    "batch": batch, "bodies": batch * scene.n_bodies, "stages": scene.stages,
-                    "s_per_step": t, "body_steps_per_s": batch * scene.n_bodies / t,
-                })
+                records.append(
+                    {
+                        "scene": name,
+                        "engine": "rigid_env",
+                        "integrator": integrator,
+                        "dt": DT,
+                        "batch": batch,
+                        "bodies": batch * scene.n_bodies,
+                        "stages": scene.stages,
+                        "s_per_step": t,
+                        "body_steps_per_s": batch * scene.n_bodies / t,
+                    }
+                )
         scene = factory(integrators[0], DT)
         batch = min(BREAKDOWN_BATCH, max(cfg["batches"]))
         state = _initial(scene, initial, batch)
-        stages[name] = {"integrator": integrators[0], "batch": batch, "stages": scene.stages,
-                        "rows": breakdown(scene, state, cfg["block_s"], cfg["repeats"])}
+        stages[name] = {
+            "integrator": integrators[0],
+            "batch": batch,
+            "stages": scene.stages,
+            "rows": breakdown(scene, state, cfg["block_s"], cfg["repeats"]),
+        }
         memory[name] = memory_per_body(scene, _initial(scene, initial, max(cfg["batches"])))
     peer = peers.speed(cfg["batches"], cfg["block_s"], DT, progress) if peers.available() else None
     if peer:
@@ -186,15 +220,30 @@ def env_speed(cfg: dict, progress=None) -> list[dict]:
         rows.append({"env": env_id, "mode": "single", "num_envs": 1, "env_steps_per_s": rate})
         for n in cfg["env_batches"]:
             try:
-                venv = gymnasium.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+                venv = gymnasium.make_vec(
+                    env_id, num_envs=n, vectorization_mode="vector_entry_point"
+                )
             except Exception as err:  # the env may not ship a native vector version
-                rows.append({"env": env_id, "mode": "vector", "num_envs": n,
-                             "env_steps_per_s": None, "note": f"no native vector env: {err}"})
+                rows.append(
+                    {
+                        "env": env_id,
+                        "mode": "vector",
+                        "num_envs": n,
+                        "env_steps_per_s": None,
+                        "note": f"no native vector env: {err}",
+                    }
+                )
                 break
             venv.reset(seed=0)
             acts = [venv.action_space.sample() for _ in range(8)]
-            rows.append({"env": env_id, "mode": "vector", "num_envs": n,
-                         "env_steps_per_s": _env_rate(venv, acts, cfg["env_steps"], n)})
+            rows.append(
+                {
+                    "env": env_id,
+                    "mode": "vector",
+                    "num_envs": n,
+                    "env_steps_per_s": _env_rate(venv, acts, cfg["env_steps"], n),
+                }
+            )
             venv.close()
     return rows
 
@@ -226,29 +275,70 @@ def table(result: dict) -> str:
                 if r["batch"] == 1:
                     row["us1"] = r["s_per_step"] * 1e6
         rows.append(row)
-    out = ["Body-steps per second (dt = 0.01 s; best of repeated blocks, single process):", "",
-           report.markdown_table(rows, [("scene", "scene", ""), ("engine", "engine", ""),
-                                        ("integrator", "integrator", ""),
-                                        ("µs/step @1", "us1", ".1f"),
-                                        *[(f"batch {b}", f"b{b}", ".3g") for b in batches]])]
+    out = [
+        "Body-steps per second (dt = 0.01 s; best of repeated blocks, single process):",
+        "",
+        report.markdown_table(
+            rows,
+            [
+                ("scene", "scene", ""),
+                ("engine", "engine", ""),
+                ("integrator", "integrator", ""),
+                ("µs/step @1", "us1", ".1f"),
+                *[(f"batch {b}", f"b{b}", ".3g") for b in batches],
+            ],
+        ),
+    ]
     for name, info in result["stage_breakdown"].items():
-        out += ["", f"Stage breakdown, {name} ({info['integrator']}, batch {info['batch']}, "
-                f"stages {info['stages']}), µs per step:", "",
-                report.markdown_table([{**r, "us": r["s"] * 1e6} for r in info["rows"]],
-                                      [("stage", "stage", ""), ("µs", "us", ".1f")])]
+        out += [
+            "",
+            f"Stage breakdown, {name} ({info['integrator']}, batch {info['batch']}, "
+            f"stages {info['stages']}), µs per step:",
+            "",
+            report.markdown_table(
+                [{**r, "us": r["s"] * 1e6} for r in info["rows"]],
+                [("stage", "stage", ""), ("µs", "us", ".1f")],
+            ),
+        ]
     mem = [{"scene": k, **v} for k, v in result["memory"].items()]
-    out += ["", "Memory per body (bytes):", "", report.markdown_table(mem, [
-        ("scene", "scene", ""), ("state", "state_bytes_per_body", ".0f"),
-        ("step peak transient", "step_peak_bytes_per_body", ".0f")])]
+    out += [
+        "",
+        "Memory per body (bytes):",
+        "",
+        report.markdown_table(
+            mem,
+            [
+                ("scene", "scene", ""),
+                ("state", "state_bytes_per_body", ".0f"),
+                ("step peak transient", "step_peak_bytes_per_body", ".0f"),
+            ],
+        ),
+    ]
     envs = result["environments"]
     if envs:
-        out += ["", "Environment steps per second:", "", report.markdown_table(envs, [
-            ("env", "env", ""), ("mode", "mode", ""), ("N", "num_envs", "d"),
-            ("env steps/s", "env_steps_per_s", ".3g"), ("note", "note", "")])]
+        out += [
+            "",
+            "Environment steps per second:",
+            "",
+            report.markdown_table(
+                envs,
+                [
+                    ("env", "env", ""),
+                    ("mode", "mode", ""),
+                    ("N", "num_envs", "d"),
+                    ("env steps/s", "env_steps_per_s", ".3g"),
+                    ("note", "note", ""),
+                ],
+            ),
+        ]
     else:
         out += ["", "Environments: not available (no RigidEnv/* registered in this checkout)."]
-    out += ["", *(f"Not available: {m}" for m in result["unavailable"]), "",
-            f"MuJoCo: {result['peers']}"]
+    out += [
+        "",
+        *(f"Not available: {m}" for m in result["unavailable"]),
+        "",
+        f"MuJoCo: {result['peers']}",
+    ]
     return "\n".join(out)
 
 
@@ -257,13 +347,21 @@ def plot(result: dict, path) -> None:
     scenes_ = list(dict.fromkeys(r["scene"] for r in recs))
     fig, axes = report.subplots(len(scenes_) + 1)
     for ax, scene in zip(axes, scenes_, strict=False):
-        for key in dict.fromkeys((r["engine"], r["integrator"]) for r in recs
-                                 if r["scene"] == scene):
-            line = sorted((r for r in recs if r["scene"] == scene
-                           and (r["engine"], r["integrator"]) == key), key=lambda r: r["batch"])
+        for key in dict.fromkeys(
+            (r["engine"], r["integrator"]) for r in recs if r["scene"] == scene
+        ):
+            line = sorted(
+                (r for r in recs if r["scene"] == scene and (r["engine"], r["integrator"]) == key),
+                key=lambda r: r["batch"],
+            )
             label = key[1] if key[0] == "rigid_env" else f"MuJoCo {key[1]}"
-            ax.loglog([r["batch"] for r in line], [r["body_steps_per_s"] for r in line],
-                      "o-" if key[0] == "rigid_env" else "s--", ms=3, label=label)
+            ax.loglog(
+                [r["batch"] for r in line],
+                [r["body_steps_per_s"] for r in line],
+                "o-" if key[0] == "rigid_env" else "s--",
+                ms=3,
+                label=label,
+            )
         ax.set(title=scene, xlabel="batch size", ylabel="body-steps / s")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
