@@ -106,8 +106,6 @@ class Scene:
             batch_shape = tuple(int(b) for b in np.atleast_1d(np.asarray(batch_shape, int)))
         except (TypeError, ValueError):
             raise ValueError(f"batch_shape must be a tuple of ints, got {batch_shape!r}") from None
-        if batch_shape == (0,) and np.ndim(batch_shape) == 1 and not batch_shape:
-            batch_shape = ()
         if any(b < 0 for b in batch_shape):
             raise ValueError(f"batch_shape must be non-negative, got {batch_shape}")
         fields = {
@@ -127,10 +125,12 @@ class Scene:
                 (*batch_shape, n, 1), *(a.shape[:-1] + (1,) for a in arrays.values())
             )
         except ValueError:
+            shape = None
+        if shape is None or shape[-2] != n:
             raise ValueError(
                 f"state arrays do not broadcast to (*batch_shape, {n}, ·): "
                 + ", ".join(f"{k} {a.shape}" for k, a in arrays.items())
-            ) from None
+            )
         out = {}
         for name, arr in arrays.items():
             out[name] = np.array(np.broadcast_to(arr, shape[:-1] + arr.shape[-1:]), dtype=float)
@@ -155,7 +155,7 @@ class Scene:
         for _, stage in self._post_stages:
             new = stage(state, new)
         if not _all_finite(new):
-            self._diagnose(state, torque, force)
+            self._diagnose(state)
         return new
 
     def _check_state(self, state) -> tuple[int, ...]:
@@ -172,14 +172,11 @@ class Scene:
             raise ValueError("state arrays disagree in shape")
         return shape
 
-    def _diagnose(self, state, torque, force):
+    def _diagnose(self, state):
         names = ("position", "orientation", "linear_velocity", "angular_velocity")
         for name, arr in zip(names, state.arrays(), strict=True):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"state.{name} contains NaN or infinity")
-        for name, arr in (("torque", torque), ("force", force)):
-            if arr is not None and not np.all(np.isfinite(arr)):
-                raise ValueError(f"{name} contains NaN or infinity")
         raise DivergenceError(
             f"the step diverged (non-finite result) with integrator {self.integrator!r} at "
             f"dt={self.dt}; use a smaller dt or a more stable integrator"
@@ -249,6 +246,8 @@ def _load(value, name: str, shape: tuple[int, ...]):
             ok = False
         if not ok or arr.ndim == 0:
             raise ValueError(f"{name} must broadcast to shape {shape}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} contains NaN or infinity")
     return arr
 
 
