@@ -7,18 +7,26 @@ angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
 from . import rotation
 from .body import Body
 from .integrators import REGISTRY as _REGISTRY
-from .model import Ground, Model, Spring
-from .scene import DEFAULT_INTEGRATOR, INTEGRATORS, DivergenceError, Scene
+from .model import Ground, Material, Model, Spring
+from .scene import (
+    CONTACT_INTEGRATOR,
+    DEFAULT_INTEGRATOR,
+    INTEGRATORS,
+    DivergenceError,
+    Scene,
+)
 from .shapes import Box, Polyhedron, Sphere
 from .state import State
 
 __all__ = [
     "Body",
     "Box",
+    "CONTACT_INTEGRATOR",
     "DEFAULT_INTEGRATOR",
     "DivergenceError",
     "Ground",
     "INTEGRATORS",
+    "Material",
     "Model",
     "Polyhedron",
     "Scene",

@@ -15,15 +15,30 @@ from .validation import finite_array, nonnegative_scalar, unit_interval
 
 
 @dataclass(frozen=True)
-class Ground:
-    """The plane z = 0 with normal +z: Newton's restitution and Coulomb's friction coefficients."""
+class Material:
+    """Contact coefficients: Newton's restitution ε in [0, 1], Coulomb's friction μ >= 0.
+
+    Approach speeds below ``restitution_threshold`` (m/s) do not bounce: such micro-bounces are
+    treated as resting contact (Box2D's restitution threshold).
+    """
 
     restitution: float = 0.0
     friction: float = 0.5
+    restitution_threshold: float = 0.1
 
     def __post_init__(self):
         object.__setattr__(self, "restitution", unit_interval(self.restitution, "restitution"))
         object.__setattr__(self, "friction", nonnegative_scalar(self.friction, "friction"))
+        object.__setattr__(
+            self,
+            "restitution_threshold",
+            nonnegative_scalar(self.restitution_threshold, "restitution_threshold"),
+        )
+
+
+@dataclass(frozen=True)
+class Ground(Material):
+    """The plane z = 0 with normal +z, with the contact coefficients of a :class:`Material`."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,7 +72,9 @@ class Spring:
 class Model:
     """Per-body arrays (leading axis = body) and the scene's force terms, built once."""
 
-    def __init__(self, bodies, gravity, ground, springs, linear_damping, angular_damping):
+    def __init__(
+        self, bodies, gravity, ground, springs, linear_damping, angular_damping, contacts=None
+    ):
         n = len(bodies)
         self.bodies = tuple(bodies)
         self.n_bodies = n
@@ -78,6 +95,8 @@ class Model:
             moments, axes = self.inertia_diagonal, np.broadcast_to(np.eye(3), axes.shape)
         self.principal_moments = moments  # (n, 3)
         self.principal_axes = axes  # (n, 3, 3)
+        self.inverse_principal_moments_array = 1.0 / moments  # (n, 3)
+        self.inverse_principal_moments = tuple(1.0 / moments[:, a] for a in range(3))
         if np.array_equal(axes, np.broadcast_to(np.eye(3), axes.shape)):
             self.principal_quat = self.principal_conj = None  # body axes are principal
         else:
@@ -87,6 +106,7 @@ class Model:
         if self.gravity is not None and self.gravity.shape != (3,):
             raise ValueError(f"gravity must be a 3-vector, got shape {self.gravity.shape}")
         self.ground = ground
+        self.contacts = contacts  # Material of body–body contacts, or None (bodies pass through)
         self.springs = tuple(springs)
         self.linear_damping = nonnegative_scalar(linear_damping, "linear_damping")
         self.angular_damping = nonnegative_scalar(angular_damping, "angular_damping")

@@ -11,16 +11,20 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from . import contacts as contact_stages
 from . import forces
 from .body import Body
 from .integrators import REGISTRY
-from .model import Ground, Model, Spring
+from .model import Ground, Material, Model, Spring
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import State
 from .validation import positive_scalar
 
 INTEGRATORS: tuple[str, ...] = tuple(REGISTRY)
 DEFAULT_INTEGRATOR = "splitting"
+# Scenes with contacts default to semi-implicit Euler with the implicit gyroscopic term: contact
+# impulses act between its velocity and position updates, and it stays stable for tumbling boxes.
+CONTACT_INTEGRATOR = "implicit_gyro"
 
 
 class DivergenceError(FloatingPointError):
@@ -34,23 +38,28 @@ class Scene:
     ----------
     bodies : a :class:`Body` or a sequence of them.
     dt : time step in seconds.
-    integrator : one of :data:`INTEGRATORS`.
+    integrator : one of :data:`INTEGRATORS`; ``None`` picks :data:`DEFAULT_INTEGRATOR`, or
+        :data:`CONTACT_INTEGRATOR` when the scene has contacts. Contacts need a semi-implicit
+        integrator (``contacts.COMPATIBLE_INTEGRATORS``); others raise ``ValueError``.
     gravity : world acceleration vector (m/s²), e.g. ``(0, 0, -9.81)``; ``None`` for space.
     ground : a :class:`Ground` (plane z = 0) or ``None``.
     springs : a sequence of :class:`Spring`.
     linear_damping, angular_damping : decay rates of linear and angular momentum, 1/s.
+    contacts : a :class:`Material` for body–body contacts, or ``None`` (bodies pass through
+        each other).
     """
 
     def __init__(
         self,
         bodies,
         dt,
-        integrator: str = DEFAULT_INTEGRATOR,
+        integrator: str | None = None,
         gravity=None,
         ground: Ground | None = None,
         springs: Sequence[Spring] = (),
         linear_damping: float = 0.0,
         angular_damping: float = 0.0,
+        contacts: Material | None = None,
     ):
         if isinstance(bodies, Body):
             bodies = (bodies,)
@@ -58,28 +67,41 @@ class Scene:
         if not bodies or not all(isinstance(b, Body) for b in bodies):
             raise ValueError("bodies must be a Body or a non-empty sequence of Body")
         self.dt = positive_scalar(dt, "dt")
-        if integrator not in REGISTRY:
-            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
         if ground is not None and not isinstance(ground, Ground):
             raise ValueError(f"ground must be a Ground or None, got {ground!r}")
+        if contacts is not None and not isinstance(contacts, Material):
+            raise ValueError(f"contacts must be a Material or None, got {contacts!r}")
         springs = tuple(springs)
         for sp in springs:
             if not isinstance(sp, Spring):
                 raise ValueError(f"springs must contain Spring objects, got {sp!r}")
             if not 0 <= sp.body < len(bodies):
                 raise ValueError(f"springs: body index {sp.body} out of range for {len(bodies)}")
+        self.model = Model(
+            bodies, gravity, ground, springs, linear_damping, angular_damping, contacts
+        )
+        contact_names, contact_stage = contact_stages.build(self.model, self.dt)
+        if integrator is None:
+            integrator = CONTACT_INTEGRATOR if contact_stage else DEFAULT_INTEGRATOR
+        if integrator not in REGISTRY:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+        if contact_stage and integrator not in contact_stages.COMPATIBLE_INTEGRATORS:
+            raise ValueError(
+                f"integrator {integrator!r} cannot be combined with contacts: contact impulses "
+                f"act between the velocity and position updates of a semi-implicit step; use "
+                f"one of {contact_stages.COMPATIBLE_INTEGRATORS}"
+            )
         self.integrator = integrator
-        self.model = Model(bodies, gravity, ground, springs, linear_damping, angular_damping)
         terms = forces.build_terms(self.model)
         self._forces = (
             forces.combine(terms, forces.is_velocity_dependent(self.model)) if terms else None
         )
         self._integrate = REGISTRY[integrator]
-        self._post_stages: tuple = ()
+        self._post_stages: tuple = ((contact_names, contact_stage),) if contact_stage else ()
         self.stages: tuple[str, ...] = (
             *(name for name, _ in terms),
             "integrate",
-            *(name for name, _ in self._post_stages),
+            *contact_names,
         )
 
     @property

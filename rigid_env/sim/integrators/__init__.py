@@ -8,11 +8,17 @@
 | `splitting`     | 2     | world L exactly; energy bounded   | 5 axis rotations    | phase error O(Δt²)     |
 | `splitting4`    | 4     | as `splitting`                    | 3 × `splitting`     | large ω Δt             |
 | `implicit_gyro` | 1     | never blows up; loses energy      | one 3×3 solve       | damps fast spin        |
+| `implicit`      | 1     | stiff springs bounded (any k Δt²) | one 6×6 solve/body  | damps resolved springs |
+
+Contacts (``sim.contacts``) need a semi-implicit step (positions drift with the final velocity):
+`euler`, `euler_quat`, `implicit_gyro`, `implicit`. Explicit symplectic Euler on a spring of
+natural frequency ω_n diverges once ω_n Δt > 2; `implicit` does not.
 """
 
 from __future__ import annotations
 
 from .euler import euler, euler_quat
+from .implicit import implicit
 from .implicit_gyro import implicit_gyro
 from .rk4 import rk4
 from .splitting import splitting, splitting4
@@ -24,4 +30,5 @@ REGISTRY = {
     "splitting": splitting,
     "splitting4": splitting4,
     "implicit_gyro": implicit_gyro,
+    "implicit": implicit,
 }

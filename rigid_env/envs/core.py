@@ -1,0 +1,291 @@
+"""One batched task core behind both the single and the native vector environment.
+
+A :class:`BatchedTask` holds ``N`` copies of a task as numpy arrays with a leading env axis: the
+scene is built once, stepping is one simulator call for all ``N``, and observation, reward,
+termination and info are batched expressions. :class:`TaskEnv` is a Gymnasium ``Env`` over a
+batch of one; :class:`TaskVectorEnv` a Gymnasium ``VectorEnv`` over a batch of ``N``. Because both
+run the same code on the same arrays, a vector env equals ``N`` single envs bit for bit when each
+sub-env draws its resets from its own generator:
+
+* a single env draws from ``env.np_random`` (Gymnasium's ``seeding.np_random(seed)``);
+* the vector env seeded with ``s`` gives sub-env ``i`` the generator ``seeding.np_random(s + i)``
+  (or ``seeding.np_random(seed[i])`` for a list of seeds), so it matches single envs seeded
+  ``s + i``.
+
+Each reset draws a fixed-length vector of random numbers per env (:meth:`BatchedTask.draw`, the
+only per-env Python loop, run only for the envs being reset) and turns the stacked draws into
+states in one batched expression (:meth:`BatchedTask.reset_envs`).
+
+The vector env follows Gymnasium 1.x ``AutoresetMode.NEXT_STEP``: the step after an episode ends
+resets that sub-env, ignores its action and returns its reset observation and info with reward 0
+and both flags ``False``. It truncates itself after ``max_episode_steps`` (``make_vec`` adds no
+``TimeLimit``).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .rendering import Frame, Renderer, View
+from .validation import action_batch, choice, positive_int
+
+
+class BatchedTask(ABC):
+    """``num_envs`` copies of a task; every array has the env axis first.
+
+    Subclasses set ``single_observation_space``, ``single_action_space`` and ``render_fps`` in
+    ``__init__`` and implement the abstract methods. ``scene`` (a :class:`rigid_env.sim.Scene`)
+    is rebuilt by :meth:`build_scene` after unpickling, since its force terms are closures.
+    """
+
+    num_envs: int
+    single_observation_space: spaces.Box
+    single_action_space: spaces.Box
+    render_fps: float
+
+    @abstractmethod
+    def build_scene(self):
+        """The task's :class:`rigid_env.sim.Scene`, built from the validated configuration."""
+
+    @abstractmethod
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """The random numbers one env consumes at one reset, as a 1-D array of fixed length."""
+
+    @abstractmethod
+    def reset_envs(self, index: np.ndarray, draws: np.ndarray) -> None:
+        """Reset the envs ``index`` from their stacked draws ``(len(index), D)``, batched."""
+
+    @abstractmethod
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Apply validated actions ``(N, *action_shape)`` in [-1, 1]; return reward, terminated."""
+
+    @abstractmethod
+    def observation(self) -> np.ndarray:
+        """Fresh ``(N, *obs_shape)`` float32 array."""
+
+    @abstractmethod
+    def info(self) -> dict[str, np.ndarray]:
+        """Fresh arrays with the env axis first (what users plot), incl. ``is_success``."""
+
+    @abstractmethod
+    def view(self) -> View:
+        """Camera and scenery (ground or not) for the renderer."""
+
+    @abstractmethod
+    def frame(self, i: int) -> Frame:
+        """What to draw for env ``i``: bodies, ghosts, text."""
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state.pop("scene", None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.scene = self.build_scene()
+
+
+def _single_info(info: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Element 0 of a batched info: Python scalars for per-env scalars, fresh arrays otherwise."""
+    return {k: (v[0].item() if v.ndim == 1 else v[0]) for k, v in info.items()}
+
+
+class TaskEnv(gym.Env):
+    """A Gymnasium ``Env`` over a :class:`BatchedTask` with a batch of one.
+
+    Subclasses set ``task_class``; keyword arguments other than ``render_mode`` go to it.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    task_class: type[BatchedTask]
+
+    def __init__(self, render_mode: str | None = None, **task_kwargs):
+        self.render_mode = choice(
+            render_mode, "render_mode", (None, *self.metadata["render_modes"])
+        )
+        self.task = self.task_class(1, **task_kwargs)
+        self.observation_space = self.task.single_observation_space
+        self.action_space = self.task.single_action_space
+        self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
+        self._action_shape = (1, *self.action_space.shape)
+        self._index = np.zeros(1, dtype=np.intp)
+        self._renderer: Renderer | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self.task.reset_envs(self._index, self.task.draw(self.np_random)[None])
+        return self._observe_and_render()
+
+    def step(self, action):
+        action = action_batch(action, self._action_shape[1:], "action")[None]
+        reward, terminated = self.task.step(action)
+        obs, info = self._observe_and_render()
+        return obs, float(reward[0]), bool(terminated[0]), False, info
+
+    def _observe_and_render(self):
+        obs, info = self.task.observation()[0], _single_info(self.task.info())
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def set_state(self, **state) -> tuple[np.ndarray, dict]:
+        """Put the env in a hand-built state (see the task's ``set_state``); returns obs, info.
+
+        Counts as the start of an episode (hold timers and the previous action are cleared).
+        """
+        self.task.set_state(self._index, **state)
+        return self.task.observation()[0], _single_info(self.task.info())
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode to make()")
+            return None
+        if self._renderer is None:
+            self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
+        return self._renderer.draw(self.task.frame(0))
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_renderer"] = None  # pygame surfaces and windows do not pickle
+        return state
+
+
+class TaskVectorEnv(VectorEnv):
+    """A native Gymnasium ``VectorEnv`` over a :class:`BatchedTask` of ``num_envs``.
+
+    Subclasses set ``task_class`` and ``default_max_episode_steps``.
+    """
+
+    metadata = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 20,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+    task_class: type[BatchedTask]
+    default_max_episode_steps: int
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        **task_kwargs,
+    ):
+        self.num_envs = positive_int(num_envs, "num_envs")
+        if max_episode_steps is None:
+            max_episode_steps = self.default_max_episode_steps
+        self.max_episode_steps = positive_int(max_episode_steps, "max_episode_steps")
+        self.render_mode = choice(
+            render_mode, "render_mode", (None, *self.metadata["render_modes"])
+        )
+        self.task = self.task_class(self.num_envs, **task_kwargs)
+        self.single_observation_space = self.task.single_observation_space
+        self.single_action_space = self.task.single_action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
+        self._action_shape = (self.num_envs, *self.single_action_space.shape)
+        self._rngs: list[np.random.Generator] | None = None
+        self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        self._prev_done = np.zeros(self.num_envs, dtype=bool)
+        self._renderer: Renderer | None = None
+
+    # --- seeding and resets ---------------------------------------------------------------------
+
+    def _seed(self, seed) -> None:
+        if seed is None:
+            if self._rngs is None:
+                self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
+            return
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed must be an int or {self.num_envs} ints, got {seed!r}")
+        self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
+
+    def _reset_index(self, index: np.ndarray) -> None:
+        draws = np.stack([self.task.draw(self._rngs[i]) for i in index])
+        self.task.reset_envs(index, draws)
+        self._steps[index] = 0
+        self._prev_done[index] = False
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        self._seed(seed)
+        mask = None if options is None else options.get("reset_mask")
+        if mask is None:
+            index = np.arange(self.num_envs)
+        else:
+            mask = np.asarray(mask)
+            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_ or not mask.any():
+                raise ValueError(
+                    f"options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
+                    "with at least one True"
+                )
+            index = np.flatnonzero(mask)
+        self._reset_index(index)
+        return self.task.observation(), self._info()
+
+    def step(self, action):
+        action = action_batch(action, self._action_shape, "action")
+        reward, terminated = self.task.step(action)
+        self._steps += 1
+        truncated = self._steps >= self.max_episode_steps
+        if self._prev_done.any():
+            # NEXT_STEP autoreset: these envs ended last step; their action was ignored.
+            index = np.flatnonzero(self._prev_done)
+            self._reset_index(index)
+            reward[index] = 0.0
+            terminated[index] = False
+            truncated[index] = False
+        self._prev_done = terminated | truncated
+        return self.task.observation(), reward, terminated, truncated, self._info()
+
+    def _info(self) -> dict[str, np.ndarray]:
+        info = self.task.info()
+        mask = np.ones(self.num_envs, dtype=bool)
+        info.update({"_" + k: mask for k in list(info)})
+        return info
+
+    def set_state(self, index=None, **state):
+        """Put sub-envs ``index`` (default all) in a hand-built state; returns obs, info."""
+        index = np.arange(self.num_envs) if index is None else np.atleast_1d(np.asarray(index))
+        self.task.set_state(index, **state)
+        self._steps[index] = 0
+        self._prev_done[index] = False
+        return self.task.observation(), self._info()
+
+    # --- rendering ------------------------------------------------------------------------------
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode to make_vec()")
+            return None
+        if self._renderer is None:
+            self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
+        return tuple(self._renderer.draw(self.task.frame(i)) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_renderer"] = None
+        return state

@@ -1,0 +1,87 @@
+"""Argument checks shared by the environments: each failure is a ``ValueError`` naming the argument.
+
+Scalar checks come from the simulator (:mod:`rigid_env.sim.validation`); this module adds what
+only environments need: integers, ranges, probabilities, quaternions, choices, and actions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sim.validation import finite_array, nonnegative_scalar, positive_scalar, unit_interval
+
+__all__ = [
+    "action_batch",
+    "choice",
+    "finite_array",
+    "nonnegative_scalar",
+    "positive_int",
+    "positive_scalar",
+    "positive_vector",
+    "quaternion",
+    "scalar_range",
+    "unit_interval",
+]
+
+
+def positive_int(value, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def scalar_range(value, name: str, minimum: float = 0.0) -> tuple[float, float]:
+    """A pair ``(low, high)`` with ``minimum <= low <= high``, both finite."""
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair (low, high) of numbers, got {value!r}") from None
+    if not (np.isfinite(low) and np.isfinite(high)) or not minimum <= low <= high:
+        raise ValueError(f"{name} must satisfy {minimum} <= low <= high (finite), got {value!r}")
+    return low, high
+
+
+def positive_vector(value, name: str, size: int = 3) -> np.ndarray:
+    """A scalar (broadcast) or a ``size``-vector of positive finite numbers, as float64 (size,)."""
+    arr = finite_array(value, name)
+    if arr.ndim == 0:
+        arr = np.full(size, float(arr))
+    if arr.shape != (size,) or np.any(arr <= 0):
+        raise ValueError(
+            f"{name} must be a positive number or {size} positive numbers, got {value!r}"
+        )
+    return arr
+
+
+def quaternion(value, name: str) -> np.ndarray:
+    """A non-zero (x, y, z, w) quaternion, normalised."""
+    q = finite_array(value, name, (4,))
+    norm = np.linalg.norm(q)
+    if q.shape != (4,) or norm < 1e-12:
+        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {value!r}")
+    return q / norm
+
+
+def choice(value, name: str, options) -> object:
+    if value not in options:
+        raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
+    return value
+
+
+def action_batch(action, shape: tuple[int, ...], name: str = "action") -> np.ndarray:
+    """A float64 copy of ``action`` with exactly ``shape``, finite, clipped to [-1, 1].
+
+    Raises ``ValueError`` for a wrong shape, a non-numeric value, NaN or infinity; nothing in the
+    environment changes before this check passes, so a rejected action leaves it usable.
+    """
+    try:
+        arr = np.array(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be a numeric array of shape {shape}, got {action!r}"
+        ) from None
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} contains NaN or infinity: {action!r}")
+    return np.clip(arr, -1.0, 1.0, out=arr)

@@ -1,0 +1,107 @@
+"""Body–body detection for the pairs a scene can have: sphere–sphere and sphere–box.
+
+Built only when a scene asks for body–body contacts (``Scene(contacts=Material(...))``) and has
+at least two shaped bodies. Each pair yields one contact point (a sphere touches a convex shape
+at one point), as arrays with a slot axis of length 1 so the solver treats them like ground
+slots. Convention: ``normal`` points from body b to body a; ``gap`` < 0 is penetration.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..rotation import quat_to_matrix, rotate, rotate_inverse
+from ..shapes import Box, Sphere
+
+
+def _unit(v):
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    fallback = np.zeros_like(v)
+    fallback[..., 2] = 1.0  # coincident centres: any direction is as good
+    return np.where(norm > 1e-12, v / np.where(norm > 1e-12, norm, 1.0), fallback), norm[..., 0]
+
+
+def sphere_sphere(ra, rb):
+    ra, rb = np.asarray(ra, float), np.asarray(rb, float)
+
+    def detect(xa, qa, xb, qb):
+        n, dist = _unit(xa - xb)
+        return -ra[:, None] * n, rb[:, None] * n, n, dist - ra - rb
+
+    return detect
+
+
+def sphere_box(radius, half_extents):
+    """Sphere a against box b: closest point of the box to the sphere's centre (Ericson 5.1.3)."""
+    radius, half = np.asarray(radius, float), np.asarray(half_extents, float)
+
+    def detect(xa, qa, xb, qb):
+        rot = quat_to_matrix(qb)
+        c = rotate_inverse(rot, xa - xb)  # sphere centre in box axes
+        closest = np.clip(c, -half, half)
+        diff, dist = _unit(c - closest)
+        # Centre inside the box: push out through the face of least penetration.
+        inside = dist <= 1e-12
+        depth = half - np.abs(c)
+        axis = np.argmin(depth, axis=-1)
+        face = np.eye(3)[axis] * np.where(c >= 0, 1.0, -1.0)
+        face_point = np.where(face != 0, face * half, c)
+        n_local = np.where(inside[..., None], face, diff)
+        closest = np.where(inside[..., None], face_point, closest)
+        gap = np.where(inside, -np.take_along_axis(depth, axis[..., None], -1)[..., 0], dist)
+        n = rotate(rot, n_local)
+        return -radius[:, None] * n, rotate(rot, closest), n, gap - radius
+
+    return detect
+
+
+class PairContacts:
+    """All sphere–sphere and sphere–box pairs of a model, grouped by kind, detected batched."""
+
+    def __init__(self, bodies):
+        groups: dict[str, list[tuple[int, int]]] = {"sphere_sphere": [], "sphere_box": []}
+        shaped = [i for i, b in enumerate(bodies) if b.shape is not None]
+        for n, i in enumerate(shaped):
+            for j in shaped[n + 1 :]:
+                si, sj = bodies[i].shape, bodies[j].shape
+                if isinstance(si, Sphere) and isinstance(sj, Sphere):
+                    groups["sphere_sphere"].append((i, j))
+                elif isinstance(si, Sphere) and isinstance(sj, Box):
+                    groups["sphere_box"].append((i, j))
+                elif isinstance(si, Box) and isinstance(sj, Sphere):
+                    groups["sphere_box"].append((j, i))
+                else:
+                    raise ValueError(
+                        f"contacts: body–body contacts support sphere–sphere and sphere–box, "
+                        f"not {type(si).__name__}–{type(sj).__name__} (bodies {i}, {j})"
+                    )
+        self.groups = []
+        for kind, pairs in groups.items():
+            if not pairs:
+                continue
+            a = np.array([p[0] for p in pairs])
+            b = np.array([p[1] for p in pairs])
+            if kind == "sphere_sphere":
+                fn = sphere_sphere(
+                    [bodies[i].shape.radius for i in a], [bodies[j].shape.radius for j in b]
+                )
+            else:
+                fn = sphere_box(
+                    [bodies[i].shape.radius for i in a],
+                    np.stack([bodies[j].shape.half_extents for j in b]),
+                )
+            self.groups.append((a, b, fn))
+        self.n_pairs = sum(len(a) for a, _, _ in self.groups)
+
+    def detect(self, x, q):
+        """List of (a, b, arm_a, arm_b, normal, gap) with a slot axis of length 1."""
+        out = []
+        for a, b, fn in self.groups:
+            arm_a, arm_b, n, gap = fn(x[..., a, :], q[..., a, :], x[..., b, :], q[..., b, :])
+            out.append(
+                (a, b, arm_a[..., None, :], arm_b[..., None, :], n[..., None, :], gap[..., None])
+            )
+        return out
+
+
+__all__ = ["PairContacts"]
