@@ -61,7 +61,7 @@ def _best_time(fn, state, block_s: float, repeats: int) -> float:
 
 
 def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
-    """(name, factory(integrator, dt), initial state kwargs, integrators) for every scene here."""
+    """(name, factory(integrator, dt), initial state (kwargs or batch -> State), integrators)."""
     cases = [
         ("free_body", scenes.free_body, {"angular_velocity": scenes.TUMBLE_OMEGA}, sim.INTEGRATORS),
         (
@@ -73,8 +73,15 @@ def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
     ]
     landing = scenes.optional_scene("landing_scene")
     if landing is not None:
+        # landing_scene returns (scene, initial_state(batch_shape, rng)); tilts and spins vary
+        # per batch element so the contact branches are exercised as in training.
         cases.append(
-            ("landing", lambda i, dt: landing(integrator=i, dt=dt), {}, (sim.DEFAULT_INTEGRATOR,))
+            (
+                "landing",
+                lambda i, dt: landing(integrator=i, dt=dt)[0],
+                lambda batch: landing()[1](batch_shape=(batch,), rng=np.random.default_rng(0)),
+                tuple(i for i in ("implicit_gyro", "euler", "implicit") if i in sim.INTEGRATORS),
+            )
         )
     return cases
 
@@ -87,9 +94,10 @@ def unavailable_scenes() -> list[str]:
     return missing
 
 
-def _initial(scene, initial: dict, batch: int):
-    if hasattr(scene, "default_state"):  # scenes shipping their own initial state
-        return scene.default_state(batch_shape=(batch,))
+def _initial(scene, initial, batch: int):
+    """``initial`` is Scene.initial_state keywords, or a function of the batch size."""
+    if callable(initial):
+        return initial(batch)
     return scene.initial_state(**initial, batch_shape=(batch,))
 
 
@@ -122,7 +130,7 @@ def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) 
     for name, stage in getattr(scene, "_post_stages", ()):
         rows.append(
             {
-                "stage": name,
+                "stage": name if isinstance(name, str) else " + ".join(name),
                 "s": _best_time(lambda s, f=stage: (f(state, new), s)[1], state, block_s, repeats),
             }
         )

@@ -280,8 +280,7 @@ def plot(result: dict, path) -> None:
             fontsize=6,
             color="white" if r["status"] == "diverged" else "black",
         )
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("firebrick")  # diverged cells
+    cmap = plt.get_cmap("viridis").with_extremes(bad="firebrick")  # masked = diverged
     im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=-16, vmax=1, aspect="auto")
     ax.set_xticks(range(len(integrators)), integrators, rotation=30)
     ax.set_yticks(range(len(names)), names)
