@@ -24,7 +24,7 @@ import numpy as np
 from rigid_env import sim
 from rigid_env.sim.rotation import quat_angle
 
-from . import peers, problems, report
+from . import bounce, peers, problems, report
 
 THEORETICAL_ORDER = {
     "euler": 1,
@@ -53,18 +53,21 @@ PRESETS = {
             4: (0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125),
         },
         batch_steps=100,
+        bounce_dts=(1 / 60, 1 / 120, 1 / 240, 1 / 480, 1 / 960, 1 / 1920),
     ),
     "quick": dict(
         duration=4.0,
         checkpoints=8,
         dts={1: (0.01, 0.005, 0.0025), 2: (0.02, 0.01, 0.005), 4: (0.04, 0.02, 0.01)},
         batch_steps=20,
+        bounce_dts=(1 / 60, 1 / 240, 1 / 960),
     ),
     "tiny": dict(
         duration=1.0,
         checkpoints=4,
         dts={1: (0.004, 0.002), 2: (0.01, 0.005), 4: (0.04, 0.02)},
         batch_steps=5,
+        bounce_dts=(1 / 60, 1 / 240),
     ),
 }
 BATCH = 1024
@@ -202,7 +205,35 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             "observed_on": scene,
             "by_scene": per,
         }
+    bounce_records, bounce_orders = measure_bounce(
+        cfg["bounce_dts"], max(10, cfg["batch_steps"]), progress
+    )
+    records += bounce_records
+    for name, per in bounce_orders.items():
+        summary.setdefault(
+            name,
+            {"theoretical": THEORETICAL_ORDER.get(name), "observed": None, "observed_on": None},
+        ).setdefault("by_scene", {}).update(per)
     peer_orders = {}
+    if peers.available():
+        if progress:
+            progress("accuracy MuJoCo first bounce")
+        peer = peers.bounce_accuracy(
+            bounce.drops(), cfg["bounce_dts"], BATCH, max(10, cfg["batch_steps"])
+        )
+        records += peer
+        for name in peers.INTEGRATORS:
+            for drop in bounce.drops():
+                rows = [
+                    r
+                    for r in peer
+                    if r["integrator"] == name
+                    and r["batch"] == 1
+                    and r["scene"] == f"first_bounce_{drop.name}"
+                ]
+                peer_orders.setdefault(name, {})[f"first_bounce_{drop.name}"] = observed_order(
+                    [r["dt"] for r in rows], [r["error"] for r in rows]
+                )
     if peers.available():
         dzh = next((p for p in problem_list if p.name == "dzhanibekov"), None)
         if dzh is not None:
@@ -212,11 +243,9 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             records += peer
             for name in peers.INTEGRATORS:
                 rows = [r for r in peer if r["integrator"] == name and r["batch"] == 1]
-                peer_orders[name] = {
-                    "dzhanibekov": observed_order(
-                        [r["dt"] for r in rows], [r["error"] for r in rows]
-                    )
-                }
+                peer_orders.setdefault(name, {})["dzhanibekov"] = observed_order(
+                    [r["dt"] for r in rows], [r["error"] for r in rows]
+                )
     return {
         "duration_s": cfg["duration"],
         "records": records,
@@ -225,6 +254,36 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
         "peers": peers.status(),
         "targets": cheapest_for_targets(records, "dzhanibekov"),
     }
+
+
+def measure_bounce(dts, batch_steps: int, progress=None) -> tuple[list[dict], dict]:
+    """The landing scene's first bounce (:mod:`bounce`) for every contact-capable integrator:
+    post-bounce velocity and angular-momentum errors against the impulse closed form."""
+    records, orders = [], {}
+    for drop in bounce.drops():
+        scene = f"first_bounce_{drop.name}"
+        for integrator in bounce.integrators():
+            errors = []
+            for dt in dts:
+                if progress:
+                    progress(f"accuracy {scene} {integrator} dt={dt:.3g}")
+                res = bounce.run(drop, integrator, dt)
+                base = {
+                    "scene": scene,
+                    "engine": "rigid_env",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "error_kind": "post-bounce velocity",
+                    "restitution": drop.restitution,
+                    "height_m": drop.height,
+                    **res,
+                }
+                for batch in (1, BATCH):
+                    wall = bounce.batch_wall(drop, integrator, dt, batch, batch_steps)
+                    records.append({**base, "batch": batch, "wall_s_per_sim_s": wall})
+                errors.append(res["error"])
+            orders.setdefault(integrator, {})[scene] = observed_order(dts, errors)
+    return records, orders
 
 
 def cheapest_for_targets(records, scene: str, targets=TARGETS) -> list[dict]:
@@ -294,6 +353,7 @@ def table(result: dict) -> str:
             *[(s, f"order_{s}", ".2f") for s in ORDER_SCENES],
         ],
     )
+    out += ["", first_bounce_table(result)]
     out += ["", f"MuJoCo: {result['peers']}"]
     if result["peer_orders"]:
         out += [
@@ -307,10 +367,45 @@ def table(result: dict) -> str:
                     ("MuJoCo integrator", "integrator", ""),
                     ("theoretical", "theoretical", "d"),
                     ("observed (dzhanibekov)", "dzhanibekov", ".2f"),
+                    ("first bounce flat", "first_bounce_flat", ".2f"),
+                    ("first bounce corner", "first_bounce_corner", ".2f"),
                 ],
             ),
         ]
     return "\n".join(out)
+
+
+def first_bounce_table(result: dict) -> str:
+    rows = [
+        {**r, "dt_inv": 1 / r["dt"]}
+        for r in result["records"]
+        if r["scene"].startswith("first_bounce") and r["batch"] == 1
+    ]
+    if not rows:
+        return "First bounce: not available (no contact-capable integrator in this checkout)."
+    return "\n".join(
+        [
+            "First bounce of the landing box (frictionless ground, ε = 0.5, dropped from 1 m; "
+            "flat = face down, corner = tilted, one corner strikes) against the impulse closed "
+            "form; errors relative to the impact speed (v, apex) or to |r| m |v⁻| (L), worst "
+            f"of {bounce.PHASES} impact instants spread over one step:",
+            "",
+            report.markdown_table(
+                rows,
+                [
+                    ("drop", "scene", ""),
+                    ("engine", "engine", ""),
+                    ("integrator", "integrator", ""),
+                    ("1/dt", "dt_inv", ".0f"),
+                    ("v⁺ error", "velocity_error", ".2e"),
+                    ("L⁺ error", "momentum_error", ".2e"),
+                    ("apex error", "apex_error", ".2e"),
+                    ("impact time error (s)", "impact_time_error", ".1e"),
+                    ("wall s / sim s", "wall_s_per_sim_s", ".2e"),
+                ],
+            ),
+        ]
+    )
 
 
 def plot(result: dict, path) -> None:
@@ -342,10 +437,11 @@ def plot(result: dict, path) -> None:
                 label=label,
             )
         kind = rows[0]["error_kind"]
+        unit = {"orientation": "rad", "position": "m"}.get(kind, "relative")
         ax.set(
             title=scene,
             xlabel="wall s per simulated s (batch 1)",
-            ylabel=f"max {kind} error ({'rad' if kind == 'orientation' else 'm'})",
+            ylabel=f"max {kind} error ({unit})",
         )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)

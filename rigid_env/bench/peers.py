@@ -139,3 +139,129 @@ def accuracy(
             _, wb = _run(model, init, steps, batch)
             records.append({**base, "batch": batch, "wall_s_per_sim_s": wb / (steps * dt)})
     return records
+
+
+# --- the landing scene's first bounce ------------------------------------------------------------
+
+
+def restitution_damping_ratio(eps: float) -> float:
+    """Damping ratio ζ of a linear spring–damper contact whose bounce keeps the fraction ε of
+    the approach speed: ε = exp(−ζπ / √(1 − ζ²)), so ζ = −ln ε / √(π² + ln² ε)."""
+    log = np.log(eps)
+    return float(-log / np.sqrt(np.pi**2 + log**2))
+
+
+def landing_model(integrator: str, dt: float, restitution: float, half_extents, mass: float):
+    """The bounce box on a plane: frictionless (condim 1) soft contact, solref (τ, ζ(ε)).
+
+    MuJoCo's contact is a damped spring of natural frequency ≈ 1/(τζ) (MuJoCo docs,
+    "Solver parameters"); its own rule τ ≥ 2Δt assumes ζ = 1. At the small ζ a bounce needs,
+    τ = 2Δt leaves ωΔt > 2 and the first contact step overshoots (a 4.4 m/s drop left at
+    21 m/s), so τ = max(0.02 s (MuJoCo's default), 2Δt/ζ) keeps ωΔt ≤ 1/2."""
+    from .bounce import GRAVITY
+
+    moments = np.diag(scenes.sim.Body.box(half_extents, mass).inertia)
+    hx = " ".join(f"{h:.17g}" for h in half_extents)
+    zeta = restitution_damping_ratio(restitution)
+    solref = f"{max(0.02, 2 * dt / zeta):.17g} {zeta:.17g}"
+    xml = f"""<mujoco><option gravity="0 0 {-GRAVITY:.17g}" timestep="{dt:.17g}"
+        integrator="{integrator}"/>
+      <worldbody><geom type="plane" size="5 5 0.1" condim="1" solref="{solref}"/>
+        <body><freejoint/>
+        <inertial pos="0 0 0" mass="{mass:.17g}" diaginertia="{" ".join(f"{m:.17g}" for m in moments)}"/>
+        <geom type="box" size="{hx}" condim="1" solref="{solref}"/>
+      </body></worldbody></mujoco>"""
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
+    """MuJoCo's first bounce, scored like rigid_env's (:mod:`rigid_env.bench.bounce`): the
+    same drops (impact phases spread over a step), errors at the same check time."""
+    from . import bounce
+
+    records = []
+    for drop in drops:
+        for integrator in INTEGRATORS:
+            for dt in dts:
+                model = landing_model(
+                    integrator, dt, drop.restitution, bounce.HALF_EXTENTS, bounce.MASS
+                )
+                hs = bounce.heights(drop, dt)
+                forms = [
+                    bounce.closed_form(
+                        bounce.Drop(drop.name, drop.orientation, h, drop.restitution)
+                    )
+                    for h in hs
+                ]
+                t_hit = np.array([cf["t_hit"] for cf in forms])
+                n_check = max(
+                    int(min(cf["t_check"] for cf in forms) / dt), int(np.ceil(t_hit.max() / dt)) + 1
+                )
+                inits = np.stack(
+                    [_state_at(model, (0, 0, cf["z0"]), drop.orientation) for cf in forms]
+                )
+                # One rollout (fresh MjData) per drop: several initial states in one rollout
+                # call share contact warm-start data and bounce wrongly (seen with 3.17).
+                out = np.empty((len(forms), n_check, inits.shape[1]))
+                start = time.perf_counter()
+                for i, init in enumerate(inits):
+                    _rollout.rollout(
+                        model, mujoco.MjData(model), init[None], nstep=n_check, state=out[i : i + 1]
+                    )
+                wall = (time.perf_counter() - start) / len(forms)
+                s = out[:, -1]
+                q = s[:, [5, 6, 7, 4]]
+                v = s[:, 8:11]
+                L = quat_rotate(q, model.body_inertia[1] * s[:, 11:14])
+                t = n_check * dt
+                up = np.array([0.0, 0.0, 1.0])
+                v_ref = np.stack(
+                    [cf["v_plus"] - bounce.GRAVITY * (t - cf["t_hit"]) * up for cf in forms]
+                )
+                l_ref = np.stack([cf["L_plus"] for cf in forms])
+                speed = np.array([np.linalg.norm(cf["v_minus"]) for cf in forms])
+                arm = np.linalg.norm(forms[0]["arm"])
+                finite = bool(np.all(np.isfinite(s)))
+                verr = float(np.max(np.linalg.norm(v - v_ref, axis=-1) / speed)) if finite else None
+                lerr = (
+                    float(np.max(np.linalg.norm(L - l_ref, axis=-1) / (arm * bounce.MASS * speed)))
+                    if finite
+                    else None
+                )
+                base = {
+                    "scene": f"first_bounce_{drop.name}",
+                    "engine": "mujoco",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "error_kind": "post-bounce velocity",
+                    "velocity_error": verr,
+                    "momentum_error": lerr,
+                    "error": None if verr is None else max(verr, lerr),
+                    "diverged": not finite,
+                }
+                records.append({**base, "batch": 1, "wall_s_per_sim_s": wall / t})
+                # Batch timing: the window of rigid_env's (bounce.batch_wall), around the impact.
+                z, vz = bounce.window_start(drop, dt, batch_steps)
+                init_b = np.tile(_state_at(model, (0, 0, z), drop.orientation, vz), (batch, 1))
+                out_b = np.empty((batch, batch_steps, inits.shape[1]))
+                start = time.perf_counter()
+                _rollout.rollout(
+                    model, mujoco.MjData(model), init_b, nstep=batch_steps, state=out_b
+                )
+                wb = time.perf_counter() - start
+                records.append(
+                    {**base, "batch": batch, "wall_s_per_sim_s": wb / (batch_steps * dt)}
+                )
+    return records
+
+
+def _state_at(model, position, q, vz: float = 0.0) -> np.ndarray:
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    data = mujoco.MjData(model)
+    q = np.asarray(q, float)
+    data.qpos[:3] = position
+    data.qpos[3:7] = (q[3], q[0], q[1], q[2])
+    data.qvel[2] = vz
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    return state
