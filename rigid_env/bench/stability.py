@@ -7,10 +7,16 @@ Each cell runs a case from a valid state and reports ``status``:
   (to within ``check_every`` steps). Nothing is left as a silent NaN: every figure is finite
   or ``None``.
 * ``drifting`` — finite, but the relative energy (or |L|) drift exceeded ``DRIFT_LIMIT``.
+* ``tunnelled`` — a contact case whose body ended below the ground (passed through it).
 * ``stable`` — otherwise.
+* ``n/a`` — the integrator cannot run the case (contacts need a semi-implicit integrator).
 
-Energy drift is max |E − E0| / E0 over the checks; momentum drift max |L − L0| / |L0| where
-angular momentum is conserved (free bodies), else ``None``.
+Energy drift is max |E − E0| / E0 over the checks (max over the batch when a case runs several
+initial conditions at once); for contact cases, which dissipate, only a gain counts:
+max(E − E0, 0) / E0 (a contact must never add energy). Momentum drift is max |L − L0| / |L0|
+where angular momentum is conserved (free bodies), |P − P0| / |P0| for linear momentum (body–body
+impacts in space), else ``None``. Max penetration (m) is the deepest overlap seen at any step of
+a contact case.
 """
 
 from __future__ import annotations
@@ -22,22 +28,33 @@ import numpy as np
 
 from rigid_env import sim
 
-from . import report, scenes
+from . import contact_cases, report, scenes
 
 BLOWUP = 1e3
 DRIFT_LIMIT = 0.1
 DT = 0.01
 
 
+# Free-body long runs: these integrators run LONG_STEPS (10⁶ in the full preset), the others a
+# tenth; each runs a batch of initial spins at once (little more than one costs).
+LONG_INTEGRATORS = ("splitting", "implicit_gyro")
+LONG_SPINS = np.array(
+    [scenes.DZHANIBEKOV_OMEGA, scenes.TUMBLE_OMEGA, (4.0, 0.1, 0.1), (0.1, 0.2, 5.0)]
+)[:, None, :]
+
+
 @dataclass(frozen=True)
 class Case:
     name: str
     group: str
-    build: Callable[[str], sim.Scene]  # integrator -> Scene
-    initial: dict
+    build: Callable[[str], sim.Scene]  # integrator -> Scene (or -> (Scene, State, depth))
+    initial: dict | None
     steps: int
-    conserves_momentum: bool
+    conserves_momentum: bool | str  # True/"angular", "linear", or False
     check_every: int = 1
+    contact: bool = False  # build returns (scene, state, depth); only compatible integrators
+    ground: bool = False  # a body ending below z = 0 tunnelled
+    steps_for: Callable[[str], int] | None = None  # per-integrator step count
 
 
 def _free(body_fn, dt):
@@ -46,7 +63,7 @@ def _free(body_fn, dt):
 
 def cases(preset: str) -> list[Case]:
     short = {"full": 2000, "quick": 500, "tiny": 40}[preset]
-    long = {"full": 100_000, "quick": 10_000, "tiny": 200}[preset]
+    long = {"full": 1_000_000, "quick": 20_000, "tiny": 200}[preset]
     stiff = {"full": (1, 10, 1e2, 1e3, 1e4, 1e6), "quick": (1, 1e2, 1e4, 1e6), "tiny": (1, 1e4)}[
         preset
     ]
@@ -110,15 +127,79 @@ def cases(preset: str) -> list[Case]:
     )
     out.append(
         Case(
-            f"long run {long:.0e} steps",
+            "long run free body",
             "long_run",
             _free(scenes.box, DT),
-            {"angular_velocity": scenes.DZHANIBEKOV_OMEGA},
+            {"angular_velocity": LONG_SPINS},
             long,
             True,
-            check_every=max(1, long // 100),
+            check_every=max(1, long // 1000),
+            steps_for=lambda i: long if i in LONG_INTEGRATORS else long // 10,
         )
     )
+    out += contact_case_list(preset)
+    return out
+
+
+CONTACT_DT = 1 / 60
+
+
+def contact_case_list(preset: str) -> list[Case]:
+    speeds = {"full": (1, 10, 100), "quick": (1, 10, 100), "tiny": (100,)}[preset]
+    ratios = {"full": (1, 1e2, 1e4, 1e6), "quick": (1, 1e3, 1e6), "tiny": (1e6,)}[preset]
+    steps = {"full": 240, "quick": 120, "tiny": 40}[preset]
+    out = []
+    for v in speeds:
+        out.append(
+            Case(
+                f"ground impact {v:g} m/s, dt=1/60",
+                "impact_speed",
+                lambda i, v=v: contact_cases.ground_impact(i, CONTACT_DT, v),
+                None,
+                steps,
+                False,
+                contact=True,
+                ground=True,
+            )
+        )
+    for r in ratios:
+        out.append(
+            Case(
+                f"sphere→sphere mass ratio {r:.0e}",
+                "mass_ratio",
+                lambda i, r=r: contact_cases.two_spheres(i, CONTACT_DT, r),
+                None,
+                steps // 2,
+                "linear",
+                contact=True,
+            )
+        )
+        out.append(
+            Case(
+                f"box→sphere mass ratio {r:.0e}",
+                "mass_ratio",
+                lambda i, r=r: contact_cases.sphere_and_box(i, CONTACT_DT, r),
+                None,
+                steps // 2,
+                "linear",
+                contact=True,
+            )
+        )
+    if contact_cases.stacks_available() is None:
+        for count in (2, 3):
+            for r in ratios:
+                out.append(
+                    Case(
+                        f"stack of {count}, top/bottom mass {r:.0e}",
+                        "stack",
+                        lambda i, r=r, n=count: contact_cases.stack(i, CONTACT_DT, r, n),
+                        None,
+                        steps,
+                        False,
+                        contact=True,
+                        ground=True,
+                    )
+                )
     return out
 
 
@@ -129,25 +210,52 @@ def run_case(case: Case, integrator: str) -> dict:
 
 
 def _run_case(case: Case, integrator: str) -> dict:
-    scene = case.build(integrator)
-    state = scene.initial_state(**case.initial)
-    e0 = float(scene.energy(state))
-    l0 = scene.angular_momentum(state)
-    energy_drift = momentum_drift = 0.0
+    steps = case.steps_for(integrator) if case.steps_for else case.steps
+    base = {
+        "scene": case.name,
+        "group": case.group,
+        "integrator": integrator,
+        "steps": steps,
+        "first_divergence_step": None,
+        "energy_drift": None,
+        "momentum_drift": None,
+        "max_penetration": None,
+        "tunnelled": None,
+    }
+    if case.contact and integrator not in contact_cases.compatible():
+        return {**base, "dt": None, "batch": 1, "status": "n/a", "stable": None}
+    depth = None
+    if case.contact:
+        scene, state, depth = case.build(integrator)
+    else:
+        scene = case.build(integrator)
+        state = scene.initial_state(**case.initial)
+    e0 = scene.energy(state)
+    kind = {True: "angular", False: None}.get(case.conserves_momentum, case.conserves_momentum)
+    momentum = scene.angular_momentum if kind == "angular" else scene.linear_momentum
+    m0 = momentum(state) if kind else None
+    energy_drift = momentum_drift = penetration = 0.0
     history = []  # (step, energy drift, momentum drift) at the checks, for growth laws
     status, first = "stable", None
-    for step in range(1, case.steps + 1):
+    for step in range(1, steps + 1):
         try:
             state = scene.step(state)
         except sim.DivergenceError:
             status, first = "diverged", step
             break
-        if step % case.check_every and step != case.steps:
+        if depth is not None:
+            penetration = max(penetration, float(np.max(depth(state))))
+        if step % case.check_every and step != steps:
             continue
-        de = abs(float(scene.energy(state)) - e0) / abs(e0)
+        change = scene.energy(state) - e0
+        if case.contact:
+            change = np.maximum(change, 0.0)  # dissipation is physics; only a gain is drift
+        de = float(np.max(np.abs(change) / np.abs(e0)))
         dl = (
-            float(np.linalg.norm(scene.angular_momentum(state) - l0) / np.linalg.norm(l0))
-            if case.conserves_momentum
+            float(
+                np.max(np.linalg.norm(momentum(state) - m0, axis=-1) / np.linalg.norm(m0, axis=-1))
+            )
+            if kind
             else 0.0
         )
         if not np.isfinite(de) or de > BLOWUP:
@@ -155,21 +263,25 @@ def _run_case(case: Case, integrator: str) -> dict:
             break
         energy_drift, momentum_drift = max(energy_drift, de), max(momentum_drift, dl)
         history.append((step, de, dl))
+    tunnelled = None
+    if case.ground and status != "diverged":
+        tunnelled = bool(np.any(state.position[..., 2] < 0))
+        if tunnelled:
+            status = "tunnelled"
     if status == "stable" and max(energy_drift, momentum_drift) > DRIFT_LIMIT:
         status = "drifting"
     out = {
-        "scene": case.name,
-        "group": case.group,
-        "integrator": integrator,
+        **base,
         "dt": scene.dt,
-        "batch": 1,
-        "steps": case.steps,
+        "batch": int(np.prod(state.batch_shape)) if state.batch_shape else 1,
         "status": status,
         "stable": status == "stable",
         "first_divergence_step": first,
         "energy_drift": energy_drift,
-        "momentum_drift": momentum_drift if case.conserves_momentum else None,
-        "max_penetration": None,  # no contact case in this matrix (see "unavailable")
+        "momentum_drift": momentum_drift if kind else None,
+        "momentum_kind": kind,
+        "max_penetration": penetration if case.contact else None,
+        "tunnelled": tunnelled,
     }
     if case.group == "long_run" and len(history) > 2:
         out["drift_history"] = history
@@ -196,15 +308,9 @@ def measure(preset: str = "full", progress=None, integrators=None) -> dict:
                 progress(f"stability {case.name} {integrator}")
             records.append(run_case(case, integrator))
     unavailable = []
-    if scenes.optional_scene("landing_scene") is None:
-        unavailable.append(
-            "impacts up to 100 m/s / tunnelling and max penetration "
-            "(rigid_env.sim.scenes.landing_scene not in this checkout)"
-        )
-    unavailable.append(
-        "mass ratios up to 1e6 in body-body impacts and stacks of two or three "
-        "boxes (the simulator has no body-body contacts in this checkout)"
-    )
+    reason = contact_cases.stacks_available()
+    if reason is not None:
+        unavailable.append(f"stacks of two or three boxes (no box–box contacts yet: {reason})")
     return {
         "records": records,
         "integrators": integrators,
@@ -217,10 +323,17 @@ def measure(preset: str = "full", progress=None, integrators=None) -> dict:
 
 
 def _cell(r: dict) -> str:
+    if r["status"] == "n/a":
+        return "n/a"
     if r["status"] == "diverged":
         return f"✗ step {r['first_divergence_step']}"
+    if r["status"] == "tunnelled":
+        return "✗ tunnelled"
     mark = "✓" if r["status"] == "stable" else "~"
-    return f"{mark} {r['energy_drift']:.1e}"
+    text = f"{mark} {r['energy_drift']:.1e}"
+    if r.get("max_penetration") is not None:
+        text += f" pen {r['max_penetration']:.0e}"
+    return text
 
 
 def table(result: dict) -> str:
@@ -230,7 +343,10 @@ def table(result: dict) -> str:
         rows.setdefault(r["scene"], {"case": r["scene"]})[r["integrator"]] = _cell(r)
     out = [
         f"✓ stable / ~ drifting (> {DRIFT_LIMIT:g}) / ✗ diverged (non-finite or energy × "
-        f"{BLOWUP:g}), with the max relative energy drift or the first step of divergence:",
+        f"{BLOWUP:g}) or tunnelled (ended below the ground), with the max relative energy "
+        "drift (contact cases: energy gain only) and max penetration (m), or the first step "
+        "of divergence; n/a: contacts need a semi-implicit integrator. Contact cases at "
+        f"dt = 1/60 s, the others at dt = {DT:g} s unless named:",
         "",
         report.markdown_table(
             list(rows.values()), [("case", "case", "")] + [(i, i, "") for i in integrators]
@@ -240,8 +356,10 @@ def table(result: dict) -> str:
     if longs:
         out += [
             "",
-            "Long run of the free body (energy and |L| drift, growth exponent p in "
-            "drift ∝ stepsᵖ):",
+            "Long run of the free body, a batch of "
+            f"{len(LONG_SPINS)} initial spins (worst of the batch), dt = {DT:g} s: energy "
+            "and |L| drift, growth exponent p in drift ∝ stepsᵖ. "
+            f"{', '.join(LONG_INTEGRATORS)} run the longest; the others a tenth of it:",
             "",
             report.markdown_table(
                 longs,
@@ -253,6 +371,26 @@ def table(result: dict) -> str:
                     ("p (energy)", "energy_drift_growth", ".2f"),
                     ("|L| drift", "momentum_drift", ".2e"),
                     ("p (|L|)", "momentum_drift_growth", ".2f"),
+                ],
+            ),
+        ]
+    contacts = [r for r in result["records"] if r.get("max_penetration") is not None]
+    if contacts:
+        out += [
+            "",
+            "Contact cases (dt = 1/60 s): energy gain, momentum drift (linear, body–body), "
+            "max penetration, tunnelling:",
+            "",
+            report.markdown_table(
+                contacts,
+                [
+                    ("case", "scene", ""),
+                    ("integrator", "integrator", ""),
+                    ("status", "status", ""),
+                    ("energy gain", "energy_drift", ".1e"),
+                    ("|P| drift", "momentum_drift", ".1e"),
+                    ("max penetration (m)", "max_penetration", ".1e"),
+                    ("tunnelled", "tunnelled", ""),
                 ],
             ),
         ]
@@ -269,7 +407,7 @@ def plot(result: dict, path) -> None:
     fig, ax = plt.subplots(figsize=(1.4 * len(integrators) + 3, 0.42 * len(names) + 1.5))
     for r in result["records"]:
         i, j = names.index(r["scene"]), integrators.index(r["integrator"])
-        if r["status"] != "diverged":
+        if r["status"] not in ("diverged", "tunnelled", "n/a"):
             grid[i, j] = np.log10(max(r["energy_drift"], 1e-16))
         ax.text(
             j,
@@ -278,12 +416,19 @@ def plot(result: dict, path) -> None:
             ha="center",
             va="center",
             fontsize=6,
-            color="white" if r["status"] == "diverged" else "black",
+            color="white" if r["status"] in ("diverged", "tunnelled") else "black",
         )
-    cmap = plt.get_cmap("viridis").with_extremes(bad="firebrick")  # masked = diverged
+    for r in result["records"]:  # under the (transparent where masked) image: red or grey
+        if r["status"] in ("diverged", "tunnelled", "n/a"):
+            i, j = names.index(r["scene"]), integrators.index(r["integrator"])
+            color = "lightgrey" if r["status"] == "n/a" else "firebrick"
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color=color, zorder=-1))
+    cmap = plt.get_cmap("viridis").with_extremes(bad=(0, 0, 0, 0))
     im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=-16, vmax=1, aspect="auto")
     ax.set_xticks(range(len(integrators)), integrators, rotation=30)
     ax.set_yticks(range(len(names)), names)
-    fig.colorbar(im, ax=ax, label="log10 max relative energy drift (red: diverged)")
+    fig.colorbar(
+        im, ax=ax, label="log10 max relative energy drift (red: diverged/tunnelled, grey: n/a)"
+    )
     ax.set_title("stability: cases × integrators")
     report.save(fig, path)
