@@ -151,7 +151,14 @@ def restitution_damping_ratio(eps: float) -> float:
     return float(-log / np.sqrt(np.pi**2 + log**2))
 
 
-def landing_model(integrator: str, dt: float, restitution: float, half_extents, mass: float):
+def landing_model(
+    integrator: str,
+    dt: float,
+    restitution: float,
+    half_extents,
+    mass: float,
+    friction: float = 0.0,
+):
     """The bounce box on a plane: frictionless (condim 1) soft contact, solref (τ, ζ(ε)).
 
     MuJoCo's contact is a damped spring of natural frequency ≈ 1/(τζ) (MuJoCo docs,
@@ -164,12 +171,14 @@ def landing_model(integrator: str, dt: float, restitution: float, half_extents, 
     hx = " ".join(f"{h:.17g}" for h in half_extents)
     zeta = restitution_damping_ratio(restitution)
     solref = f"{max(0.02, 2 * dt / zeta):.17g} {zeta:.17g}"
+    # condim 1: frictionless normal contact only; 3: with sliding friction μ.
+    contact = f'condim="{3 if friction else 1}" friction="{friction:.17g} 0.005 0.0001"'
     xml = f"""<mujoco><option gravity="0 0 {-GRAVITY:.17g}" timestep="{dt:.17g}"
         integrator="{integrator}"/>
-      <worldbody><geom type="plane" size="5 5 0.1" condim="1" solref="{solref}"/>
+      <worldbody><geom type="plane" size="50 50 0.1" {contact} solref="{solref}"/>
         <body><freejoint/>
         <inertial pos="0 0 0" mass="{mass:.17g}" diaginertia="{" ".join(f"{m:.17g}" for m in moments)}"/>
-        <geom type="box" size="{hx}" condim="1" solref="{solref}"/>
+        <geom type="box" size="{hx}" {contact} solref="{solref}"/>
       </body></worldbody></mujoco>"""
     return mujoco.MjModel.from_xml_string(xml)
 
@@ -255,13 +264,71 @@ def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
     return records
 
 
-def _state_at(model, position, q, vz: float = 0.0) -> np.ndarray:
+def _state_at(model, position, q, vz: float = 0.0, omega_world=None) -> np.ndarray:
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     data = mujoco.MjData(model)
     q = np.asarray(q, float)
     data.qpos[:3] = position
     data.qpos[3:7] = (q[3], q[0], q[1], q[2])
     data.qvel[2] = vz
+    if omega_world is not None:  # MuJoCo's free-joint angular velocity is in body axes
+        data.qvel[3:6] = quat_rotate(q * np.array([-1, -1, -1, 1.0]), np.asarray(omega_world))
     state = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state, spec)
     return state
+
+
+def landing_speed(batches, block_s: float, dt: float, progress=None) -> list[dict]:
+    """Body-steps per second of MuJoCo on rigid_env's landing scene: the same box (1 kg, half
+    extents 0.1, 0.15, 0.2 m), restitution 0.3 and friction 0.5, dropped from 1 m with the
+    same random tilts and spins, timed after the same 1 s pre-roll (boxes on the ground)."""
+    from rigid_env.sim import scenes as sim_scenes
+
+    from .speed import LANDING_PREROLL_S
+
+    records = []
+    for integrator in INTEGRATORS:
+        model = landing_model(integrator, dt, 0.3, sim_scenes.LANDING_HALF_EXTENTS, 1.0, 0.5)
+        for batch in batches:
+            if progress:
+                progress(f"speed mujoco landing {integrator} batch={batch}")
+            _, initial = sim_scenes.landing_scene()
+            start_state = initial(batch_shape=(batch,), rng=np.random.default_rng(0))
+            inits = np.stack(
+                [
+                    _state_at(model, p[0], q[0], 0.0, w[0])
+                    for p, q, w in zip(
+                        start_state.position,
+                        start_state.orientation,
+                        start_state.angular_velocity,
+                        strict=True,
+                    )
+                ]
+            )
+            preroll = int(round(LANDING_PREROLL_S / dt))
+            rolled = np.empty((batch, preroll, inits.shape[1]))
+            _rollout.rollout(model, mujoco.MjData(model), inits, nstep=preroll, state=rolled)
+            landed = np.ascontiguousarray(rolled[:, -1])
+            _, probe = _timed_rollout(model, landed, 4)
+            nstep = max(4, int(block_s / max(probe / 4, 1e-8)))
+            best = min(_timed_rollout(model, landed, nstep)[1] for _ in range(3)) / nstep
+            records.append(
+                {
+                    "scene": "landing",
+                    "engine": "mujoco",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "batch": batch,
+                    "bodies": batch,
+                    "s_per_step": best,
+                    "body_steps_per_s": batch / best,
+                }
+            )
+    return records
+
+
+def _timed_rollout(model, inits, nstep):
+    out = np.empty((inits.shape[0], nstep, inits.shape[1]))
+    start = time.perf_counter()
+    _rollout.rollout(model, mujoco.MjData(model), inits, nstep=nstep, state=out)
+    return out, time.perf_counter() - start
