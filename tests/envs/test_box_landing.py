@@ -29,6 +29,7 @@ from gymnasium.vector import AutoresetMode
 
 import rigid_env
 from rigid_env import sim
+from rigid_env.bench.landing_feasibility import POLICIES, first_episodes
 from rigid_env.envs import ENV_SPECS
 from rigid_env.envs.box_landing import (
     FACE_NORMALS,
@@ -549,29 +550,9 @@ def test_zero_torque_never_gains_energy():
 
 def test_pd_landing_controller_beats_zero_torque():
     """Feasibility, not triviality: a saturated PD law on the face error (turn the target face
-    down in flight, damp the spin) lands far more boxes on the target than zero torque."""
-    n, steps = 16, 75  # 2.5 s: the fall, the settling and the 0.5 s hold fit
-    env = make_vec(ID, n, max_episode_steps=steps)
-    task = env.unwrapped.task
-    inertia = np.diag(task._inertia)
-    wn = 10.0  # rad/s, critically damped per axis
-
-    def rollout(controlled: bool) -> float:
-        obs, _ = env.reset(seed=0)
-        success, done = np.zeros(n, bool), np.zeros(n, bool)
-        while not done.all():
-            normal, down = obs[:, 11:14].astype(float), -obs[:, 5:8].astype(float)
-            axis = np.cross(normal, down)
-            sin = np.linalg.norm(axis, axis=1, keepdims=True)
-            theta = np.arctan2(sin, np.sum(normal * down, axis=1, keepdims=True))
-            # Upside down (sin ≈ 0, θ ≈ π): any axis across the normal will do.
-            axis = np.where(sin > 1e-6, axis / np.maximum(sin, 1e-12), np.roll(normal, 1, axis=1))
-            torque = inertia * (wn**2 * theta * axis - 2 * wn * obs[:, 8:11] * task.spin_scale)
-            action = np.clip(torque / task.max_torque, -1, 1) * controlled
-            obs, _, terminated, truncated, _ = env.step(action.astype(np.float32))
-            success |= terminated & ~done
-            done |= terminated | truncated
-        return success.mean()
-
-    controlled, free = rollout(True), rollout(False)
+    down in flight, damp the spin) lands far more boxes on the target than zero torque. 2.5 s
+    episodes: the fall, the settling and the 0.5 s hold fit."""
+    kw = dict(episodes=16, seed=0, max_episode_steps=75)
+    controlled = first_episodes(POLICIES["pd"], **kw)["success"]
+    free = first_episodes(POLICIES["zero"], **kw)["success"]
     assert controlled >= 0.75 and free <= 0.25 and controlled > free + 0.5, (controlled, free)
