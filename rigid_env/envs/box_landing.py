@@ -44,9 +44,9 @@ world axes (z up).
 | 22–24 | previous action                                        | -1  | 1   | ``max_torque``   |
 
 Height and clearance are bounded below by the ground (a resting contact may sink by rounding:
-the clearance is clipped at 0) and clipped at 10 m above. The velocities are clipped: a throw
-starts within about ±1.5 scaled units and the fall adds at most ~7 m/s; torque can spin the box
-up without limit, which a sensible policy avoids. ``info`` carries the values unclipped.
+the clearance is clipped at 0) and clipped at 10 m above. The velocities are clipped: a default
+throw starts within ±0.4 scaled units and a 2 m fall adds 6.3 m/s (1.3 units); torque can spin
+the box up without limit, which a sensible policy avoids. ``info`` carries the values unclipped.
 
 ## Rewards
 
