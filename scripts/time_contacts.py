@@ -53,8 +53,7 @@ def main(batches):
         t_contact = _best(run_contact, repeats) / steps
         t_drop = _best(run_drop, 2 if batch <= 1024 else 1) / 480
         print(
-            f"{batch:>6} {t_contact * 1e6:>19.1f} {t_drop * 1e6:>13.1f} "
-            f"{batch / t_contact:>13.0f}"
+            f"{batch:>6} {t_contact * 1e6:>19.1f} {t_drop * 1e6:>13.1f} {batch / t_contact:>13.0f}"
         )
 
 
