@@ -90,17 +90,22 @@ class PairContacts:
                     [bodies[i].shape.radius for i in a],
                     np.stack([bodies[j].shape.half_extents for j in b]),
                 )
-            self.groups.append((a, b, fn))
-        self.n_pairs = sum(len(a) for a, _, _ in self.groups)
+            self.groups.append((a, b, fn, 1))
+        self.n_pairs = sum(len(g[0]) for g in self.groups)
 
     def detect(self, x, q):
         """List of (a, b, arm_a, arm_b, normal, gap) with a slot axis of length 1."""
         out = []
-        for a, b, fn in self.groups:
+        for a, b, fn, _ in self.groups:
             arm_a, arm_b, n, gap = fn(x[..., a, :], q[..., a, :], x[..., b, :], q[..., b, :])
-            out.append(
-                (a, b, arm_a[..., None, :], arm_b[..., None, :], n[..., None, :], gap[..., None])
-            )
+            if gap.ndim == arm_a.ndim - 1:  # one point per pair: add the slot axis
+                arm_a, arm_b, n, gap = (
+                    arm_a[..., None, :],
+                    arm_b[..., None, :],
+                    n[..., None, :],
+                    gap[..., None],
+                )
+            out.append((a, b, arm_a, arm_b, n, gap))
         return out
 
 
