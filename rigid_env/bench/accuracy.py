@@ -11,6 +11,10 @@ against the reference; every figure is the maximum over the checkpoints:
 * ``wall_s_per_sim_s`` wall time per simulated second, at batch 1 (timed over the scored run)
   and at batch 1024 (timed over a shorter run of identical copies, whole batch).
 
+The landing scene's first bounce (:mod:`rigid_env.bench.bounce`) is scored separately, for the
+contact-capable integrators only: post-bounce velocity and angular momentum against the impulse
+closed form (and the bounce apex against ε²h for the flat drop).
+
 The observed order is the least-squares slope of log(error) against log(dt) over the points
 in the asymptotic range: above the rounding floor and below ``ASYMPTOTIC_MAX``.
 """
