@@ -1,7 +1,7 @@
 """``python -m rigid_env.bench {accuracy,stability,speed,all} [--quick] [--out DIR]``.
 
 Each command prints a markdown table and writes ``DIR/<command>.json`` and ``DIR/<command>.png``.
-The default is the full run (a few minutes per command); ``--quick`` takes under a minute per
+The default is the full run (5–8 minutes per command); ``--quick`` takes about a minute per
 command; ``--preset tiny`` (seconds, used by the tests) exercises every code path.
 """
 

@@ -38,7 +38,7 @@ PRESETS = {
         env_steps=200,
     ),
     "quick": dict(
-        batches=(1, 64, 1024, 16384),
+        batches=(1, 64, 1024),  # 16384 in the full run (the landing pre-roll alone takes ~1 min)
         block_s=0.04,
         repeats=3,
         env_batches=(1, 64, 1024, 4096),
