@@ -64,6 +64,10 @@ class BatchedTask(ABC):
         """Reset the envs ``index`` from their stacked draws ``(len(index), D)``, batched."""
 
     @abstractmethod
+    def set_state(self, index: np.ndarray, **state) -> None:
+        """Put envs ``index`` in a hand-built state (task-specific keywords), as at a reset."""
+
+    @abstractmethod
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Apply validated actions ``(N, *action_shape)`` in [-1, 1]; return reward, terminated."""
 

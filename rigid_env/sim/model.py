@@ -95,6 +95,8 @@ class Model:
             moments, axes = self.inertia_diagonal, np.broadcast_to(np.eye(3), axes.shape)
         self.principal_moments = moments  # (n, 3)
         self.principal_axes = axes  # (n, 3, 3)
+        self.inverse_principal_moments_array = 1.0 / moments  # (n, 3)
+        self.inverse_principal_moments = tuple(1.0 / moments[:, a] for a in range(3))
         if np.array_equal(axes, np.broadcast_to(np.eye(3), axes.shape)):
             self.principal_quat = self.principal_conj = None  # body axes are principal
         else:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import quat_multiply, quat_rotate, quat_to_matrix
+from ..rotation import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix
 from ..state import State
 from .common import kick, wrench
 
@@ -22,21 +22,23 @@ from .common import kick, wrench
 _SEQUENCE = ((0, 0.5), (1, 0.5), (2, 1.0), (1, 0.5), (0, 0.5))
 
 
-def free_rotation(model, q, angular_momentum, h):
-    """Exact flows of H_0, H_1, H_2 composed symmetrically; returns (q, ω) after time h."""
-    moments = model.principal_moments
-    qp = q if model.principal_quat is None else quat_multiply(q, model.principal_quat)
-    conj = qp * np.array([-1.0, -1.0, -1.0, 1.0])
-    pi = quat_rotate(conj, angular_momentum)  # Π in principal body axes
+def free_rotation(model, qp, pi, h):
+    """Exact flows of H_0, H_1, H_2 composed symmetrically, over time h.
+
+    ``qp`` maps principal body axes to world, ``pi`` is Π in principal axes; returns both after
+    the flow (world L = R Π is unchanged by every sub-flow).
+    """
+    inv = model.inverse_principal_moments
     p = [pi[..., 0], pi[..., 1], pi[..., 2]]
     r = [qp[..., 0], qp[..., 1], qp[..., 2], qp[..., 3]]
     for axis, fraction in _SEQUENCE:
         j, k = (axis + 1) % 3, (axis + 2) % 3
-        phi = (fraction * h / moments[..., axis]) * p[axis]
+        phi = (fraction * h) * (inv[axis] * p[axis])
         c, s = np.cos(phi), np.sin(phi)
         p[j], p[k] = c * p[j] + s * p[k], c * p[k] - s * p[j]
         # qp ← qp ∘ (sin(φ/2) e_axis, cos(φ/2))
-        ch, sh = np.cos(0.5 * phi), np.sin(0.5 * phi)
+        half = 0.5 * phi
+        ch, sh = np.cos(half), np.sin(half)
         r[axis], r[3], r[j], r[k] = (
             ch * r[axis] + sh * r[3],
             ch * r[3] - sh * r[axis],
@@ -47,23 +49,25 @@ def free_rotation(model, q, angular_momentum, h):
     # Unit products drift from |q| = 1 by rounding; unrenormalised, every later conversion would
     # scale L by |q|⁴ and the drift would grow linearly with the step count.
     qp = qp / np.linalg.norm(qp, axis=-1, keepdims=True)
-    w = quat_rotate(qp, np.stack(p, axis=-1) / moments)
-    q = qp if model.principal_quat is None else quat_multiply(qp, model.principal_conj)
-    return q, w
+    return qp, np.stack(p, axis=-1)
 
 
 def _strang(model, x, q, v, w, dt, forces, force, torque):
-    inv_m = model.inv_mass[:, None]
     f, t = wrench(forces, x, q, v, w, force, torque)
-    v = kick(v, 0.5 * dt, inv_m, f)
-    angular_momentum = model.apply_inertia(quat_to_matrix(q), w)
-    if t is not None:
-        angular_momentum = angular_momentum + 0.5 * dt * t
+    v = kick(v, 0.5 * dt, model.inv_mass[:, None], f)
     x = x + dt * v
-    q, w = free_rotation(model, q, angular_momentum, dt)
+    # Work in principal axes: Π = I Ω (+ ½ Δt Rᵀ T, the opening half kick).
+    qp = q if model.principal_quat is None else quat_multiply(q, model.principal_quat)
+    conj = quat_conjugate(qp)
+    pi = model.principal_moments * quat_rotate(conj, w)
+    if t is not None:
+        pi = pi + (0.5 * dt) * quat_rotate(conj, t)
+    qp, pi = free_rotation(model, qp, pi, dt)
+    w = quat_rotate(qp, pi * model.inverse_principal_moments_array)
+    q = qp if model.principal_quat is None else quat_multiply(qp, model.principal_conj)
     if f is None and t is None:
         return x, q, v, w
-    rot = quat_to_matrix(q)
+    rot = None if t is None else quat_to_matrix(q)
     v_end, w_end = _half_kick(model, rot, x, q, v, w, v, w, dt, forces, force, torque)
     if forces is not None and forces.velocity_dependent:
         # The closing half kick should see the end-of-step velocity: one corrector pass
