@@ -47,7 +47,7 @@ def evaluate(env_id: str, policy: str, episodes: int = DEFAULT_EPISODES, seed: i
 def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SEED) -> Path:
     """A clip of the episode seeded ``seed`` (the first evaluation episode)."""
     import gymnasium as gym
-    import imageio.v2 as imageio
+    from PIL import Image
 
     env = gym.make(env_id, render_mode="rgb_array", **env_kwargs_for(policy))
     act = make_policy(policy, env_id, env, seed)
@@ -62,7 +62,10 @@ def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SE
     env.close()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    imageio.mimsave(path, frames, duration=1 / env.metadata["render_fps"], loop=0)
+    # Pillow's fast octree palette: ~5x quicker than imageio's default GIF quantiser here.
+    images = [Image.fromarray(f).quantize(128, method=Image.Quantize.FASTOCTREE) for f in frames]
+    duration_ms = round(1000 / env.metadata["render_fps"])
+    images[0].save(path, save_all=True, append_images=images[1:], duration=duration_ms, loop=0)
     return path
 
 

@@ -35,6 +35,7 @@ class Throughput:
 
     env_steps: int
     learn_seconds: float  # the whole of model.learn
+    cpu_seconds: float  # process CPU time of model.learn (robust to other loads on the machine)
     eval_seconds: float  # of which periodic evaluation
     env_seconds: float  # of which inside the training vector env (step + partial resets)
     sim_seconds: float  # of which inside the simulator's Scene.step
@@ -49,7 +50,9 @@ class Throughput:
             "env_steps": self.env_steps,
             "learn_seconds": round(self.learn_seconds, 2),
             "eval_seconds": round(self.eval_seconds, 2),
+            "cpu_seconds": round(self.cpu_seconds, 2),
             "steps_per_second": round(self.env_steps / self.learn_seconds, 1),
+            "steps_per_cpu_second": round(self.env_steps / self.cpu_seconds, 1),
             "steps_per_second_without_eval": round(self.env_steps / t, 1),
             "env_share": round(self.env_seconds / t, 4),
             "sim_share": round(self.sim_seconds / t, 4),
@@ -213,15 +216,17 @@ def train(
     )
     callback = _eval_callback(env_id, env_kwargs, out, eval_freq, eval_episodes, eval_seed, log)
 
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     model.learn(total_timesteps=timesteps, callback=callback, progress_bar=progress)
     learn_seconds = time.perf_counter() - start
+    cpu_seconds = time.process_time() - cpu_start
     model.save(out / "final_model.zip")
     env.close()
 
     throughput = Throughput(
         env_steps=int(model.num_timesteps),
         learn_seconds=learn_seconds,
+        cpu_seconds=cpu_seconds,
         eval_seconds=callback.seconds,
         env_seconds=adapter.env_seconds,
         sim_seconds=timed.seconds,
@@ -234,7 +239,8 @@ def train(
     best = max(result.evaluations, key=lambda r: r["mean_return"])
     log(
         f"throughput: {throughput['steps_per_second']:,.0f} env steps/s of wall time "
-        f"({throughput['steps_per_second_without_eval']:,.0f} without evaluation); "
+        f"({throughput['steps_per_second_without_eval']:,.0f} without evaluation, "
+        f"{throughput['steps_per_cpu_second']:,.0f} per CPU second); "
         f"vector env {throughput['env_share']:.1%} of it, simulator {throughput['sim_share']:.1%}; "
         f"learner {throughput['learner_us_per_step']:.0f} µs per env step"
     )
