@@ -16,6 +16,7 @@ inside the vector env and inside the simulator's ``Scene.step``.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import time
 from dataclasses import dataclass, field
@@ -160,7 +161,7 @@ def train(
     overrides: dict | None = None,
     eval_seed: int = DEFAULT_EVAL_SEED,
     progress: bool = True,
-    log=print,
+    log=None,
 ) -> RunResult:
     """Train ``algo`` on ``env_id`` with the config file's hyperparameters (``overrides`` on
     top: loop keys or algorithm kwargs); returns the run's figures (also in ``run.json``)."""
@@ -172,6 +173,7 @@ def train(
     from .policies import make_policy
     from .vec_adapter import GymVectorToSB3
 
+    log = log or functools.partial(print, flush=True)  # flushed: progress shows when piped
     torch.set_num_threads(1)  # small MLPs: threads cost more than they give on 2 cores
     loop, kwargs = config.load(env_id, algo)
     if overrides:
