@@ -13,6 +13,11 @@ ENV_SPECS: dict[str, dict] = {
         vector_entry_point="rigid_env.envs.reorient:ReorientVectorEnv",
         max_episode_steps=200,  # = rigid_env.envs.reorient.MAX_EPISODE_STEPS (checked by a test)
     ),
+    "RigidEnv/BoxLanding-v0": dict(
+        entry_point="rigid_env.envs.box_landing:BoxLandingEnv",
+        vector_entry_point="rigid_env.envs.box_landing:BoxLandingVectorEnv",
+        max_episode_steps=120,  # = rigid_env.envs.box_landing.MAX_EPISODE_STEPS (checked by a test)
+    ),
 }
 
 

@@ -34,8 +34,26 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .kinematics import apply, rotation_matrices
 from .rendering import Frame, Renderer, View
 from .validation import action_batch, choice, positive_int
+
+
+def step_body_torque(scene, state, rot, torque, frame_skip: int, after=None):
+    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
+
+    ``torque`` (N, 3) acts about the body's own axes (reaction wheels, thrusters), so it is
+    rotated into the world at every physics step with that step's starting orientation; ``rot``
+    (N, 3, 3) is R of ``state``, which the caller already has. ``after(state)``, if given, runs
+    after every physics step (e.g. to latch contact sensors between actions). Returns the state.
+    """
+    for k in range(frame_skip):
+        if k:
+            rot = rotation_matrices(state.orientation[:, 0])
+        state = scene.step(state, torque=apply(rot, torque)[:, None, :])
+        if after is not None:
+            after(state)
+    return state
 
 
 class BatchedTask(ABC):

@@ -137,7 +137,8 @@ from gymnasium import spaces
 
 from .. import sim
 from ..sim.rotation import quat_conjugate, quat_rotate
-from .core import BatchedTask, TaskEnv, TaskVectorEnv
+from .bodies import make_body
+from .core import BatchedTask, TaskEnv, TaskVectorEnv, step_body_torque
 from .kinematics import apply, apply_transpose, left_matrices, rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import (
@@ -158,29 +159,6 @@ SPIN_OBS_LIMIT = 5.0  # observed Ω / spin_scale is clipped to ± this (5× the 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _make_body(body, half_extents, mass, inertia) -> sim.Body:
-    if body is not None:
-        if half_extents is not None or mass is not None:
-            raise ValueError("body: give either body or half_extents/mass, not both")
-        if not isinstance(body, sim.Body):
-            raise ValueError(f"body must be a rigid_env.sim.Body, got {body!r}")
-    else:
-        half_extents = positive_vector(
-            (0.3, 0.2, 0.1) if half_extents is None else half_extents, "half_extents"
-        )
-        body = sim.Body.box(half_extents, 12.0 if mass is None else mass)
-    if inertia is not None:
-        tensor = finite_array(inertia, "inertia")
-        if tensor.shape == (3,):
-            tensor = np.diag(tensor)
-        if tensor.shape != (3, 3):
-            raise ValueError(
-                f"inertia must be 3 principal moments or a 3×3 tensor, got {inertia!r}"
-            )
-        body = sim.Body(body.mass, tensor, body.shape, body.center_of_mass)
-    return body
 
 
 class ReorientTask(BatchedTask):
@@ -213,7 +191,14 @@ class ReorientTask(BatchedTask):
         spin_scale: float | None = None,
     ):
         self.num_envs = positive_int(num_envs, "num_envs")
-        self.body = _make_body(body, half_extents, mass, inertia)
+        self.body = make_body(
+            body,
+            half_extents,
+            mass,
+            inertia,
+            default_half_extents=(0.3, 0.2, 0.1),
+            default_mass=12.0,
+        )
         self.integrator = choice(integrator, "integrator", sim.INTEGRATORS)
         self.dt = positive_scalar(dt, "dt")
         self.frame_skip = positive_int(frame_skip, "frame_skip")
@@ -324,13 +309,7 @@ class ReorientTask(BatchedTask):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         torque = action * self.max_torque  # body frame, (N, 3)
-        state, rot = self.state, self._rot
-        for k in range(self.frame_skip):
-            # Body-fixed actuators: rotate the torque into the world at each physics step.
-            if k:
-                rot = rotation_matrices(state.orientation[:, 0])
-            state = self.scene.step(state, torque=apply(rot, torque)[:, None, :])
-        self.state = state
+        self.state = step_body_torque(self.scene, self.state, self._rot, torque, self.frame_skip)
         self.prev_action = action
         self._measure()
         within = (self._angle < self.angle_threshold) & (self._spin < self.spin_threshold)

@@ -247,7 +247,11 @@ class ContactStage:
         _main_pass(slots, u, self.iterations)
         v, w = u[..., :3], u[..., 3:]
         x = x1 + dt * (v - v1)
-        q = quat_normalize(quat_multiply(quat_exp(dt * (w - w1)), q1))
+        turned = quat_normalize(quat_multiply(quat_exp(dt * (w - w1)), q1))
+        # Bodies the contacts left alone keep q₁ bit for bit, as when nothing in the batch is in
+        # reach (the early return above): an element's step must not depend on the rest of the
+        # batch (a vector env equals single envs); renormalising q₁ would change its last bits.
+        q = np.where(np.any(w != w1, axis=-1, keepdims=True), turned, q1)
         x = self._project(sets, slots, u, x)
         u = self._restitute(sets, slots, u, u1, q0, v0, w0)
         return State(x, q, np.array(u[..., :3]), np.array(u[..., 3:]))

@@ -1,0 +1,51 @@
+"""``python -m rigid_env.bench {accuracy,stability,speed,all} [--quick] [--out DIR]``.
+
+Each command prints a markdown table and writes ``DIR/<command>.json`` and ``DIR/<command>.png``.
+The default is the full run (a few minutes per command); ``--quick`` takes under a minute per
+command; ``--preset tiny`` (seconds, used by the tests) exercises every code path.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+from pathlib import Path
+
+from . import report
+
+COMMANDS = ("accuracy", "stability", "speed")
+
+
+def run_command(command: str, preset: str, out: Path, progress=None) -> dict:
+    module = importlib.import_module(f"rigid_env.bench.{command}")
+    start = time.perf_counter()
+    result = module.measure(preset, progress=progress)
+    result["bench_wall_s"] = time.perf_counter() - start
+    report.write_json(out / f"{command}.json", command, preset, result)
+    module.plot(result, out / f"{command}.png")
+    return result, module.table(result)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m rigid_env.bench", description=__doc__.split("\n")[0]
+    )
+    parser.add_argument("command", choices=(*COMMANDS, "all"))
+    parser.add_argument("--quick", action="store_true", help="each command in under a minute")
+    parser.add_argument("--preset", choices=("full", "quick", "tiny"), help="overrides --quick")
+    parser.add_argument("--out", type=Path, default=Path("reports"), help="output directory")
+    parser.add_argument("--verbose", "-v", action="store_true", help="progress on stderr")
+    args = parser.parse_args(argv)
+    preset = args.preset or ("quick" if args.quick else "full")
+    progress = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
+    for command in COMMANDS if args.command == "all" else (args.command,):
+        result, text = run_command(command, preset, args.out, progress)
+        print(f"## {command} ({preset}, {result['bench_wall_s']:.0f} s)\n\n{text}\n")
+        print(f"wrote {args.out / (command + '.json')} and {args.out / (command + '.png')}\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,353 @@
+"""Work–precision: each integrator's error against exact solutions, and what the accuracy costs.
+
+For every problem, integrator and time step the run is scored at evenly spaced checkpoints
+against the reference; every figure is the maximum over the checkpoints:
+
+* ``orientation_error`` geodesic angle between q and q_ref (rad); ``angular_velocity_error``
+  |ω − ω_ref| (rad/s); ``position_error``/``velocity_error`` likewise (m, m/s);
+* ``energy_drift`` |E − E_ref| / max|E_ref| and ``momentum_drift`` |L − L_ref| / max|L_ref|,
+  with E_ref, L_ref evaluated on the reference state (so a damped or driven problem is scored
+  against its true energy, not against a constant);
+* ``wall_s_per_sim_s`` wall time per simulated second, at batch 1 (timed over the scored run)
+  and at batch 1024 (timed over a shorter run of identical copies, whole batch).
+
+The observed order is the least-squares slope of log(error) against log(dt) over the points
+in the asymptotic range: above the rounding floor and below ``ASYMPTOTIC_MAX``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from rigid_env import sim
+from rigid_env.sim.rotation import quat_angle
+
+from . import peers, problems, report
+
+THEORETICAL_ORDER = {
+    "euler": 1,
+    "euler_quat": 1,
+    "rk4": 4,
+    "splitting": 2,
+    "splitting4": 4,
+    "implicit_gyro": 1,
+    "implicit": 1,
+}
+TARGETS = (1e-3, 1e-6, 1e-9)
+ASYMPTOTIC_MAX = 1e-2  # above this the leading error term does not yet dominate
+# Rounding accumulates like the step count: below ~100 ε per step an error is rounding, not
+# truncation (Hairer, Lubich & Wanner, "Geometric Numerical Integration", §VIII.5).
+ROUNDING_PER_STEP = 100 * np.finfo(float).eps
+
+# dt sweeps per preset: (duration s, checkpoints, dts for order-1/2 methods, dts for order 4,
+# steps timed at batch 1024). High-order methods need larger dt to stay above rounding.
+PRESETS = {
+    "full": dict(
+        duration=20.0,
+        checkpoints=20,
+        dts={
+            1: (0.02, 0.01, 0.005, 0.002, 0.001),
+            2: (0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
+            4: (0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125),
+        },
+        batch_steps=100,
+    ),
+    "quick": dict(
+        duration=4.0,
+        checkpoints=8,
+        dts={1: (0.01, 0.005, 0.0025), 2: (0.02, 0.01, 0.005), 4: (0.04, 0.02, 0.01)},
+        batch_steps=20,
+    ),
+    "tiny": dict(
+        duration=1.0,
+        checkpoints=4,
+        dts={1: (0.004, 0.002), 2: (0.01, 0.005), 4: (0.04, 0.02)},
+        batch_steps=5,
+    ),
+}
+BATCH = 1024
+ORDER_SCENES = ("dzhanibekov", "symmetric_top", "damped_spring", "spin_up")
+
+
+def _reference_state(scene: sim.Scene, initial: dict, ref: dict) -> sim.State:
+    """The reference as a State (T, 1 body); fields the reference omits keep initial values."""
+    names = ("position", "orientation", "linear_velocity", "angular_velocity")
+    fields = {k: initial.get(k) if k not in ref else np.asarray(ref[k])[:, None, :] for k in names}
+    return scene.initial_state(**fields, batch_shape=(len(next(iter(ref.values()))),))
+
+
+def run(
+    problem: problems.Problem, integrator: str, dt: float, duration: float, checkpoints: int
+) -> dict:
+    """One scored batch-1 run; returns the error figures and the batch-1 wall time."""
+    scene = problem.build(integrator, dt)
+    n_steps = int(round(duration / dt))
+    marks = np.unique(np.linspace(0, n_steps, checkpoints + 1).round().astype(int))[1:]
+    state = scene.initial_state(**problem.initial)
+    torque = problem.torque
+    saved, wall, done = [], 0.0, 0
+    try:
+        for mark in marks:
+            start = time.perf_counter()
+            for _ in range(mark - done):
+                state = scene.step(state, torque=torque)
+            wall += time.perf_counter() - start
+            done = mark
+            saved.append(state)
+    except sim.DivergenceError:
+        return {"diverged_at_step": done, "wall_s_per_sim_s": None}
+    times = marks * dt
+    got = sim.State(*(np.stack([s.arrays()[i] for s in saved]) for i in range(4)))
+    ref = _reference_state(scene, problem.initial, problem.reference(times))
+    out = {
+        "orientation_error": float(np.max(quat_angle(got.orientation, ref.orientation))),
+        "angular_velocity_error": _max_norm(got.angular_velocity - ref.angular_velocity),
+        "position_error": _max_norm(got.position - ref.position),
+        "velocity_error": _max_norm(got.linear_velocity - ref.linear_velocity),
+        "energy_drift": _relative(scene.energy(got), scene.energy(ref)),
+        "momentum_drift": _relative(scene.angular_momentum(got), scene.angular_momentum(ref)),
+        "wall_s_per_sim_s": wall / (done * dt),
+        "steps": done,
+    }
+    out["error"] = out[f"{problem.main_error}_error"]
+    return out
+
+
+def _max_norm(a: np.ndarray) -> float:
+    return float(np.max(np.linalg.norm(a, axis=-1)))
+
+
+def _relative(got: np.ndarray, ref: np.ndarray) -> float:
+    diff = np.abs(got - ref) if got.ndim == 1 else np.linalg.norm(got - ref, axis=-1)
+    scale = np.max(np.abs(ref) if ref.ndim == 1 else np.linalg.norm(ref, axis=-1))
+    return float(np.max(diff) / scale) if scale > 0 else float(np.max(diff))
+
+
+def batch_wall(
+    problem: problems.Problem, integrator: str, dt: float, steps: int, batch: int = BATCH
+) -> float:
+    """Wall seconds per simulated second for ``batch`` copies (best of three timings)."""
+    scene = problem.build(integrator, dt)
+    state = scene.initial_state(**problem.initial, batch_shape=(batch,))
+    state = scene.step(state, torque=problem.torque)  # warm-up
+    best = np.inf
+    for _ in range(3):
+        s = state
+        start = time.perf_counter()
+        for _ in range(steps):
+            s = scene.step(s, torque=problem.torque)
+        best = min(best, time.perf_counter() - start)
+    return best / (steps * dt)
+
+
+def observed_order(dts, errors, duration: float | None = None) -> float | None:
+    """Slope of log error vs log dt over the asymptotic points (None if fewer than two).
+
+    With ``duration`` a point counts only above the rounding accumulated over its steps.
+    """
+    pts = [
+        (d, e)
+        for d, e in zip(dts, errors, strict=True)
+        if e is not None
+        and e < ASYMPTOTIC_MAX
+        and e > (ROUNDING_PER_STEP * duration / d if duration else 0.0)
+    ]
+    if len(pts) < 2:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def measure(preset: str = "full", integrators=None, problem_list=None, progress=None) -> dict:
+    """Every (problem, integrator, dt) record, observed orders and the target table."""
+    cfg = PRESETS[preset]
+    integrators = tuple(integrators or sim.INTEGRATORS)
+    problem_list = problem_list or problems.all_problems()
+    records, orders = [], {}
+    for problem in problem_list:
+        for integrator in integrators:
+            dts = cfg["dts"][THEORETICAL_ORDER.get(integrator, 1)]
+            errors = []
+            for dt in dts:
+                if progress:
+                    progress(f"accuracy {problem.name} {integrator} dt={dt}")
+                res = run(problem, integrator, dt, cfg["duration"], cfg["checkpoints"])
+                base = {
+                    "scene": problem.name,
+                    "engine": "rigid_env",
+                    "integrator": integrator,
+                    "dt": dt,
+                    "duration_s": cfg["duration"],
+                    "error_kind": problem.main_error,
+                }
+                records.append({**base, "batch": 1, **res})
+                errors.append(res.get("error"))
+                if res.get("error") is not None:
+                    wall = batch_wall(problem, integrator, dt, cfg["batch_steps"])
+                    records.append({**base, **res, "batch": BATCH, "wall_s_per_sim_s": wall})
+            orders.setdefault(integrator, {})[problem.name] = observed_order(
+                dts, errors, cfg["duration"]
+            )
+    summary = {}
+    for name, per in orders.items():
+        # Prefer the Dzhanibekov problem: it exercises every term of the free rotation; on
+        # others some methods are exact (Verlet on a constant torque) or leave the asymptotic
+        # range only at tiny dt, so they have no order to fit.
+        scene = next((s for s in ORDER_SCENES if per.get(s) is not None), None)
+        summary[name] = {
+            "theoretical": THEORETICAL_ORDER.get(name),
+            "observed": per.get(scene),
+            "observed_on": scene,
+            "by_scene": per,
+        }
+    peer_orders = {}
+    if peers.available():
+        dzh = next((p for p in problem_list if p.name == "dzhanibekov"), None)
+        if dzh is not None:
+            if progress:
+                progress("accuracy MuJoCo dzhanibekov")
+            peer = peers.accuracy(dzh, cfg["dts"], cfg["duration"], cfg["checkpoints"], BATCH)
+            records += peer
+            for name in peers.INTEGRATORS:
+                rows = [r for r in peer if r["integrator"] == name and r["batch"] == 1]
+                peer_orders[name] = {
+                    "dzhanibekov": observed_order(
+                        [r["dt"] for r in rows], [r["error"] for r in rows]
+                    )
+                }
+    return {
+        "duration_s": cfg["duration"],
+        "records": records,
+        "observed_order": summary,
+        "peer_orders": peer_orders,
+        "peers": peers.status(),
+        "targets": cheapest_for_targets(records, "dzhanibekov"),
+    }
+
+
+def cheapest_for_targets(records, scene: str, targets=TARGETS) -> list[dict]:
+    """For each target error and batch size (1, 1024), the measured (engine, integrator, dt)
+    reaching it at least wall time per simulated second per body."""
+    rows = []
+    for batch in (1, BATCH):
+        pool = [
+            r
+            for r in records
+            if r["scene"] == scene and r["batch"] == batch and r.get("error") is not None
+        ]
+        for target in targets:
+            ok = [r for r in pool if r["error"] <= target]
+            best = min(ok, key=lambda r: r["wall_s_per_sim_s"], default=None)
+            rows.append(
+                {
+                    "target_rad": target,
+                    "batch": batch,
+                    "engine": best and best["engine"],
+                    "integrator": best and best["integrator"],
+                    "dt": best and best["dt"],
+                    "error": best and best["error"],
+                    "wall_s_per_sim_s": best and best["wall_s_per_sim_s"],
+                    "wall_s_per_body_sim_s": best and best["wall_s_per_sim_s"] / batch,
+                }
+            )
+    return rows
+
+
+# --- output ------------------------------------------------------------------------------------
+
+
+def table(result: dict) -> str:
+    orders = [{"integrator": k, **v} for k, v in result["observed_order"].items()]
+    out = [
+        "Cheapest measured integrator and dt reaching each orientation error on the "
+        f"Dzhanibekov problem after {result['duration_s']:g} s, at batch 1 and batch {BATCH}:",
+        "",
+        report.markdown_table(
+            result["targets"],
+            [
+                ("target (rad)", "target_rad", ".0e"),
+                ("batch", "batch", "d"),
+                ("engine", "engine", ""),
+                ("integrator", "integrator", ""),
+                ("dt (s)", "dt", "g"),
+                ("error (rad)", "error", ".2e"),
+                ("wall s / sim s (whole batch)", "wall_s_per_sim_s", ".2e"),
+                ("per body", "wall_s_per_body_sim_s", ".2e"),
+            ],
+        ),
+        "",
+        "Observed order (slope of log error vs log dt in the asymptotic range):",
+        "",
+        "",
+    ]
+    for row in orders:
+        row.update({f"order_{s}": v for s, v in row["by_scene"].items()})
+    out[-1] = report.markdown_table(
+        orders,
+        [
+            ("integrator", "integrator", ""),
+            ("theoretical", "theoretical", "d"),
+            ("observed", "observed", ".2f"),
+            ("fitted on", "observed_on", ""),
+            *[(s, f"order_{s}", ".2f") for s in ORDER_SCENES],
+        ],
+    )
+    out += ["", f"MuJoCo: {result['peers']}"]
+    if result["peer_orders"]:
+        out += [
+            "",
+            report.markdown_table(
+                [
+                    {"integrator": k, "theoretical": peers.THEORETICAL_ORDER[k], **v}
+                    for k, v in result["peer_orders"].items()
+                ],
+                [
+                    ("MuJoCo integrator", "integrator", ""),
+                    ("theoretical", "theoretical", "d"),
+                    ("observed (dzhanibekov)", "dzhanibekov", ".2f"),
+                ],
+            ),
+        ]
+    return "\n".join(out)
+
+
+def plot(result: dict, path) -> None:
+    """Error against batch-1 run time, log–log, one panel per problem, one line per method."""
+    records = [r for r in result["records"] if r["batch"] == 1 and r.get("error")]
+    scenes = list(dict.fromkeys(r["scene"] for r in records))
+    fig, axes = report.subplots(len(scenes))
+    orders = result["observed_order"]
+    for ax, scene in zip(axes, scenes, strict=True):
+        rows = [r for r in records if r["scene"] == scene]
+        for key in dict.fromkeys((r["engine"], r["integrator"]) for r in rows):
+            line = sorted(
+                (r for r in rows if (r["engine"], r["integrator"]) == key),
+                key=lambda r: r["wall_s_per_sim_s"],
+            )
+            p = (
+                orders.get(key[1], {}).get("by_scene", {}).get(scene)
+                if key[0] == "rigid_env"
+                else result.get("peer_orders", {}).get(key[1], {}).get(scene)
+            )
+            label = (key[1] if key[0] == "rigid_env" else f"MuJoCo {key[1]}") + (
+                f"  (p≈{p:.2f})" if p is not None else ""
+            )
+            ax.loglog(
+                [r["wall_s_per_sim_s"] for r in line],
+                [r["error"] for r in line],
+                "o-" if key[0] == "rigid_env" else "s--",
+                ms=3,
+                label=label,
+            )
+        kind = rows[0]["error_kind"]
+        ax.set(
+            title=scene,
+            xlabel="wall s per simulated s (batch 1)",
+            ylabel=f"max {kind} error ({'rad' if kind == 'orientation' else 'm'})",
+        )
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"rigid_env accuracy vs cost ({result['duration_s']:g} s runs)")
+    report.save(fig, path)

@@ -1,0 +1,49 @@
+"""The body an environment simulates: a default box, or the user's ``sim.Body``, checked."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import sim
+from .validation import finite_array, positive_vector
+
+
+def make_body(
+    body,
+    half_extents,
+    mass,
+    inertia,
+    *,
+    default_half_extents,
+    default_mass: float,
+    shapes: tuple[type, ...] | None = None,
+) -> sim.Body:
+    """``body`` as given, or a uniform box of ``half_extents`` and ``mass`` (defaults otherwise).
+
+    ``inertia`` (3 principal moments or a 3×3 tensor, kg m²) overrides the body's; ``shapes``
+    restricts the collision shapes the task can use (e.g. a box to land on its faces). Each
+    failure is a ``ValueError`` naming the argument.
+    """
+    if body is not None:
+        if half_extents is not None or mass is not None:
+            raise ValueError("body: give either body or half_extents/mass, not both")
+        if not isinstance(body, sim.Body):
+            raise ValueError(f"body must be a rigid_env.sim.Body, got {body!r}")
+        if shapes is not None and not isinstance(body.shape, shapes):
+            names = " or ".join(s.__name__ for s in shapes)
+            raise ValueError(f"body must have a {names} shape, got {body.shape!r}")
+    else:
+        half_extents = positive_vector(
+            default_half_extents if half_extents is None else half_extents, "half_extents"
+        )
+        body = sim.Body.box(half_extents, default_mass if mass is None else mass)
+    if inertia is not None:
+        tensor = finite_array(inertia, "inertia")
+        if tensor.shape == (3,):
+            tensor = np.diag(tensor)
+        if tensor.shape != (3, 3):
+            raise ValueError(
+                f"inertia must be 3 principal moments or a 3×3 tensor, got {inertia!r}"
+            )
+        body = sim.Body(body.mass, tensor, body.shape, body.center_of_mass)
+    return body
