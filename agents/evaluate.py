@@ -78,7 +78,13 @@ COLUMNS = (
 )
 
 
-HIDDEN = ("final_energy_mean",)  # in the JSON, not worth a table column
+# Outcome columns, when the env reports them (all figures are in the JSON).
+EXTRA_COLUMNS = (
+    ("final angle error", "final_angle_error_mean", "{:.4f}"),
+    ("final spin", "final_spin_mean", "{:.4f}"),
+    ("bounces", "final_bounces_mean", "{:.2f}"),
+    ("on target face", "on_target_face_rate", "{:.1%}"),
+)
 
 
 def print_table(rows: list[dict], title: str | None = None) -> None:
@@ -86,18 +92,12 @@ def print_table(rows: list[dict], title: str | None = None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    extra = [k for k in rows[0] if k.startswith("final_") and k not in HIDDEN]
+    columns = COLUMNS + tuple(c for c in EXTRA_COLUMNS if c[1] in rows[0])
     table = Table(title=title)
-    for name, _, _ in COLUMNS:
+    for name, _, _ in columns:
         table.add_column(name, justify="left" if name == "policy" else "right")
-    for key in extra:
-        table.add_column(
-            "final " + key.removeprefix("final_").removesuffix("_mean"), justify="right"
-        )
     for row in rows:
-        cells = [fmt.format(row[key]) for _, key, fmt in COLUMNS]
-        cells += [f"{row.get(k, np.nan):.4g}" for k in extra]
-        table.add_row(*cells)
+        table.add_row(*(fmt.format(row.get(key, np.nan)) for _, key, fmt in columns))
     Console(width=120).print(table)
 
 

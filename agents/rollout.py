@@ -38,6 +38,9 @@ class Episodes:
         for key, value in self.final_info.items():
             if value.ndim == 1 and value.dtype.kind in "fiu" and key != "is_success":
                 out[f"final_{key}_mean"] = float(np.mean(value))
+        if "down_face" in self.final_info and "target_face" in self.final_info:  # BoxLanding
+            on_target = self.final_info["down_face"] == self.final_info["target_face"]
+            out["on_target_face_rate"] = float(np.mean(on_target))
         return out
 
 
