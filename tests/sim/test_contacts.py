@@ -5,13 +5,15 @@ mean over the step; closed forms hold up to O(v Δt) in distance and O(g Δt) in
 tolerances below are a small multiple of those bounds (derived in each test).
 """
 
+import os
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rigid_env import sim
-from rigid_env.sim.rotation import quat_exp
+from rigid_env.sim.rotation import quat_exp, quat_multiply
 from rigid_env.sim.scenes import landing_scene
 
 G = 9.81
@@ -40,19 +42,51 @@ def test_stages_and_integrator_choice():
         sim.Scene(box, 0.01, contacts=0.5)
 
 
-def test_resting_box_is_an_exact_fixed_point():
-    # A box resting flat is a fixed point of the step to rounding: if 1500 steps (from rest and
-    # from a 1e-3 m drop) leave it exactly in place, 100 000 do too (no state changes).
-    box = sim.Body.box((0.1, 0.15, 0.2), 1.0)
+# The issue asks for 100 000 steps; the suite runs REST_STEPS (a few seconds) and the full run
+# is `RIGID_ENV_REST_STEPS=100000 python -m pytest tests/sim/test_contacts.py -k rest`.
+REST_STEPS = int(os.environ.get("RIGID_ENV_REST_STEPS", "18000"))
+
+
+def test_resting_boxes_stay_at_rest():
+    # Six boxes in one batch, on each of the three face pairs, yawed, placed exactly or dropped
+    # from 1e-3 m. Resting is a fixed point of the step (the warm start is the exact impulse),
+    # so after REST_STEPS the state must be unchanged to rounding: no jitter (velocities
+    # < 1e-12), no creep (x, y within 1e-12 m), no sinking (height within 1e-12 m).
+    half = np.array([0.1, 0.15, 0.2])
+    box = sim.Body.box(half, 1.0)
     scene = sim.Scene(box, 1 / 240, gravity=GRAVITY, ground=sim.Ground(0.3, 0.5))
-    state = scene.initial_state(position=[[[0, 0, 0.2]], [[0, 0, 0.201]]], batch_shape=(2,))
-    for _ in range(1500):
+    yaw = quat_exp(np.array([0.0, 0.0, 0.7]))
+    faces = [
+        (np.array([0.0, 0.0, 0.0]), half[2]),
+        (np.array([np.pi / 2, 0.0, 0.0]), half[1]),
+        (np.array([0.0, np.pi / 2, 0.0]), half[0]),
+    ]
+    orientation, height, drop = [], [], []
+    for rotvec, h in faces:
+        for d in (0.0, 1e-3):
+            orientation.append(quat_multiply(yaw, quat_exp(rotvec)))
+            height.append(h)
+            drop.append(d)
+    height = np.array(height)
+    position = np.zeros((6, 1, 3))
+    position[:, 0, 2] = height + np.array(drop)
+    position[:, 0, 0] = np.linspace(-1.0, 1.0, 6)
+    state = scene.initial_state(
+        position=position, orientation=np.array(orientation)[:, None], batch_shape=(6,)
+    )
+    for _ in range(240):  # let the dropped ones land
         state = scene.step(state)
-    np.testing.assert_allclose(state.position[..., 2], 0.2, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(state.position[..., :2], 0.0, rtol=0, atol=1e-12)
+    start = state.copy()
+    np.testing.assert_allclose(start.position[..., 0, 2], height, rtol=0, atol=1e-12)
+    for _ in range(REST_STEPS):
+        state = scene.step(state)
+    np.testing.assert_allclose(state.position, start.position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(state.position[..., 0, 2], height, rtol=0, atol=1e-12)
     np.testing.assert_allclose(state.linear_velocity, 0.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(state.angular_velocity, 0.0, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(np.abs(state.orientation[..., 3]), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        np.abs(np.sum(state.orientation * start.orientation, -1)), 1.0, rtol=0, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("eps", [0.5, 0.8])

@@ -1,12 +1,20 @@
-"""Sequential impulses with accumulated clamping, Coulomb friction and Newton restitution.
+"""Contact impulses: projected Jacobi with mass splitting on the Delassus matrix, Coulomb
+friction and Newton restitution.
 
 The notes' impulse ("Impacto"): at a contact with normal n and arms r_a, r_b, an impulse j n
 changes the normal relative velocity by j (1/m_a + 1/m_b + nᵀ(M_a⁻¹(r_a×n))×r_a + …); the
-ground is body b with infinite mass (its terms vanish). With several simultaneous contacts the
-impulses are found by projected Gauss–Seidel (Catto, "Iterative Dynamics with Temporal
-Coherence", GDC 2005; Box2D v3's solver), batched: each slot of the padded manifold is one
-vectorised update over every batch element at once. Sweeps alternate direction so that no
-contact order is favoured.
+ground is body b with infinite mass (its terms vanish). Every contact point of the scene has
+three rows (normal, two tangents) in one Jacobian J (…, 3C, 6n); the Delassus matrix
+A = J M⁻¹ Jᵀ (…, 3C, 3C) is built once per step, so an iteration is one small mat-vec
+c = b + A λ and a few element-wise clamps over all contacts and the whole batch at once.
+
+The iteration is projected Jacobi with mass splitting (Tonge, English, Catto & Pasquale,
+"Mass splitting for jitter-free parallel rigid body simulation", SIGGRAPH 2012): a contact on
+bodies touched by K candidate contacts takes 1/K of its own correction. With the 3×3 contact
+blocks normalised to the identity, A's eigenvalues are at most K (Cauchy–Schwarz on the
+off-diagonal blocks), so the 1/K-relaxed iteration cannot overshoot. Unlike Gauss–Seidel it
+favours no contact, so a symmetric landing stays symmetric (no spin). It stops as soon as no
+impulse changes by more than a relative 1e-13 anywhere in the batch.
 
 A step (semi-implicit Euler: forces → velocities → contacts → positions):
 
@@ -16,14 +24,16 @@ A step (semi-implicit Euler: forces → velocities → contacts → positions):
    cancels the sliding velocity, in two rows each clamped to ``|j_t| ≤ μ j_n``; the first row
    is along the sliding direction, so there the law is Coulomb's exactly, the impulse opposes
    sliding and never reverses it (across it, the pyramid admits up to √2 μ j_n in total).
+   Ground manifolds start from the impulse that stops the body as a particle, shared equally
+   by the violated corners: exact for a box resting or landing flat, so resting is a fixed
+   point of the step (no jitter, creep or sinking).
 2. Positions drift with the solved velocities: x ← x₁ + Δt (v_s − v₁), q ← exp(Δt (ω_s − ω₁)) q₁,
    which equals x₀ + Δt v_s for the semi-implicit integrators this stage accepts.
 3. *Restitution pass* (velocities only, Box2D v3's ``applyRestitution``): a contact that carried
    impulse and was approached faster than the material's threshold gets ``v_n = −ε v_impact``.
    The impact speed is the normal approach speed interpolated to the instant the gap closes
    under constant normal acceleration, ``v_impact² = v_n0² − 2 a d`` with a = (v_n1 − v_n0)/Δt,
-   so that a ball dropped with ε = 1 leaves the ground with the speed it hit it (energy is not
-   lost or gained by where in the step the impact fell).
+   so that a ball dropped with ε = 1 leaves the ground with the speed it hit it.
 4. Energy guard: if the restitution impulse would leave more kinetic energy than the step had
    before contact (Newton's law can do so at simultaneous contacts), it is scaled down until it
    does not. Positions are never pushed apart by velocity: any remaining penetration is removed
@@ -37,13 +47,16 @@ import numpy as np
 from ..rotation import cross, quat_exp, quat_multiply, quat_normalize, quat_to_matrix
 from ..state import State
 
-ITERATIONS = 10
+MAX_ITERATIONS = 20
+RELATIVE_TOLERANCE = 1e-13
+WARM_ROUNDS = 6  # active-set rounds of the coupled warm start (a stack of two needs 2–3)
 _UP = np.array([0.0, 0.0, 1.0])
+_NO_BOUNCE = -1e30  # restitution target of contacts that do not bounce: never binding
 
 
-def _tangents(n, vrel):
+def _tangents(n, vrel, vn):
     """Sliding direction t1 (any perpendicular when not sliding) and t2 = n × t1."""
-    vt = vrel - np.sum(vrel * n, axis=-1, keepdims=True) * n
+    vt = vrel - vn[..., None] * n
     speed = np.linalg.norm(vt, axis=-1, keepdims=True)
     helper = np.where(np.abs(n[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
     perp = helper - np.sum(helper * n, axis=-1, keepdims=True) * n
@@ -52,283 +65,395 @@ def _tangents(n, vrel):
     return t1, cross(n, t1)
 
 
-class _Set:
-    """One group of contacts sharing bodies (a, b): Jacobians and effective masses per slot."""
+class _Layout:
+    """Static bookkeeping of the scene's contact points, computed once.
 
-    def __init__(self, a, b, arm_a, arm_b, normal, gap, material, model, inv_inertia, u0, u1, dt):
-        self.a, self.b, self.gap, self.material = a, b, gap, material
-        self.arm_a, self.arm_b, self.normal = arm_a, arm_b, normal
-        ua1 = u1 if a is None else u1[..., a, :]
-        vrel = ua1[..., None, :3] + cross(ua1[..., None, 3:], arm_a)
-        if b is not None:
-            ub1 = u1[..., b, :]
-            vrel = vrel - ub1[..., None, :3] - cross(ub1[..., None, 3:], arm_b)
-        t1, t2 = _tangents(normal, vrel)
-        basis = np.stack((np.broadcast_to(normal, t1.shape), t1, t2), axis=-2)  # (…,G,K,3,3)
-        self.jac_a, self.w_a = self._rows(basis, arm_a, a, model, inv_inertia, 1.0)
-        eff = np.einsum("...ik,...jk->...ij", self.jac_a, self.w_a)
-        if b is not None:
-            self.jac_b, self.w_b = self._rows(basis, arm_b, b, model, inv_inertia, -1.0)
-            eff = eff + np.einsum("...ik,...jk->...ij", self.jac_b, self.w_b)
-        self.b_nn = eff[..., 0, 0]
-        self.b_nt = eff[..., 0, 1:]
-        self.b_tt = np.stack((eff[..., 1, 1], eff[..., 2, 2]), axis=-1)
-        self.b_12 = eff[..., 1, 2]
-        self.vn0 = self.normal_velocity(u0)
-        self.vn1 = self.normal_velocity(u1)
-        self.target = np.where(gap > 0, -gap / dt, 0.0)
+    Ground slots come first (G bodies × K slots, contiguous per body), then each pair group's
+    slots (P pairs × S slots). ``a``/``b`` are the body indices per contact (b = −1: ground).
+    """
 
-    @staticmethod
-    def _rows(basis, arm, idx, model, inv_inertia, sign):
-        rxb = cross(arm[..., None, :], basis)
-        inv_m = model.inv_mass if idx is None else model.inv_mass[idx]
-        iinv = inv_inertia if idx is None else inv_inertia[..., idx, :, :]
-        jac = np.concatenate((basis, rxb), axis=-1)
-        w = np.concatenate(
-            (basis * inv_m[:, None, None, None], rxb @ iinv[..., :, None, :, :]), axis=-1
-        )
-        return sign * jac, sign * w
-
-    def velocity(self, u):
-        """Relative velocity in the contact basis (n, t1, t2), (…, G, K, 3)."""
-        ua = u if self.a is None else u[..., self.a, :]
-        c = np.einsum("...kij,...j->...ki", self.jac_a, ua)
-        if self.b is not None:
-            c = c + np.einsum("...kij,...j->...ki", self.jac_b, u[..., self.b, :])
-        return c
-
-    def normal_velocity(self, u):
-        return self.velocity(u)[..., 0]
-
-    def slots(self):
-        """Per-slot views, sliced once so the Gauss–Seidel loop only does arithmetic."""
-        out = []
-        for k in range(self.gap.shape[-1]):
-            out.append(
-                {
-                    "a": self.a,
-                    "b": self.b,
-                    "jac_a": self.jac_a[..., k, :, :],
-                    "w_a": self.w_a[..., k, :, :],
-                    "jac_b": None if self.b is None else self.jac_b[..., k, :, :],
-                    "w_b": None if self.b is None else self.w_b[..., k, :, :],
-                    "b_nn": self.b_nn[..., k],
-                    "b_nt": self.b_nt[..., k, :],
-                    "b_tt": self.b_tt[..., k, :],
-                    "b_12": self.b_12[..., k],
-                    "target": self.target[..., k],
-                    "mu": self.material.friction,
-                    "lam_n": np.zeros(self.gap.shape[:-1]),
-                    "lam_t": np.zeros((*self.gap.shape[:-1], 2)),
-                }
-            )
-        return out
-
-
-def _relative(slot, u):
-    a, b = slot["a"], slot["b"]
-    ua = u if a is None else u[..., a, :]
-    c = np.einsum("...ij,...j->...i", slot["jac_a"], ua)
-    if b is not None:
-        c = c + np.einsum("...ij,...j->...i", slot["jac_b"], u[..., b, :])
-    return c
-
-
-def _apply(slot, u, delta):
-    a, b = slot["a"], slot["b"]
-    du = np.einsum("...i,...ij->...j", delta, slot["w_a"])
-    if a is None:
-        u += du
-    else:
-        u[..., a, :] += du
-    if b is not None:
-        u[..., b, :] += np.einsum("...i,...ij->...j", delta, slot["w_b"])
-
-
-def _sweep_order(n_slots, iterations):
-    forward = list(range(n_slots))
-    for i in range(iterations):
-        yield from (forward if i % 2 == 0 else forward[::-1])
-
-
-def _main_pass(slots, u, iterations):
-    for s in _sweep_order(len(slots), iterations):
-        slot = slots[s]
-        c = _relative(slot, u)
-        lam_n = slot["lam_n"]
-        new_n = np.maximum(lam_n + (slot["target"] - c[..., 0]) / slot["b_nn"], 0.0)
-        d_n = new_n - lam_n
-        # Friction sees the tangential velocity after this normal update (B couples them).
-        # Two friction rows, the first along the sliding direction (an aligned pyramid: along
-        # the slip it is exactly Coulomb's |j_t| <= μ j_n), each clamped to ±μ j_n.
-        limit = slot["mu"] * new_n
-        lam_t = slot["lam_t"]
-        b_nt, b_tt = slot["b_nt"], slot["b_tt"]
-        vt1 = c[..., 1] + b_nt[..., 0] * d_n
-        t1 = np.clip(lam_t[..., 0] - vt1 / b_tt[..., 0], -limit, limit)
-        d1 = t1 - lam_t[..., 0]
-        vt2 = c[..., 2] + b_nt[..., 1] * d_n + slot["b_12"] * d1
-        t2 = np.clip(lam_t[..., 1] - vt2 / b_tt[..., 1], -limit, limit)
-        new_t = np.stack((t1, t2), axis=-1)
-        delta = np.concatenate((d_n[..., None], new_t - lam_t), axis=-1)
-        slot["lam_n"], slot["lam_t"] = new_n, new_t
-        _apply(slot, u, delta)
-
-
-def _restitution_pass(slots, u, iterations):
-    zero_t = None
-    for s in _sweep_order(len(slots), iterations):
-        slot = slots[s]
-        c = _relative(slot, u)
-        lam = slot["lam_r"]
-        new = np.maximum(lam + (slot["bounce"] - c[..., 0]) / slot["b_nn"], 0.0)
-        if zero_t is None:
-            zero_t = np.zeros((*new.shape, 2))
-        slot["lam_r"] = new
-        _apply(slot, u, np.concatenate(((new - lam)[..., None], zero_t), axis=-1))
+    def __init__(self, model, ground, pairs):
+        n = model.n_bodies
+        a, b, mu, eps, thr = [], [], [], [], []
+        self.n_ground = 0
+        if ground is not None:
+            self.ground_bodies = ground.bodies
+            self.k = ground.k
+            self.n_ground = len(ground.bodies) * ground.k
+            a.append(np.repeat(ground.bodies, ground.k))
+            b.append(np.full(self.n_ground, -1))
+            g = model.ground
+            for lst, val in (
+                (mu, g.friction),
+                (eps, g.restitution),
+                (thr, g.restitution_threshold),
+            ):
+                lst.append(np.full(self.n_ground, val))
+        if pairs is not None:
+            m = model.contacts
+            for pa, pb, _, slots in pairs.groups:
+                a.append(np.repeat(pa, slots))
+                b.append(np.repeat(pb, slots))
+                size = len(pa) * slots
+                for lst, val in (
+                    (mu, m.friction),
+                    (eps, m.restitution),
+                    (thr, m.restitution_threshold),
+                ):
+                    lst.append(np.full(size, val))
+        self.a, self.b = np.concatenate(a), np.concatenate(b)
+        self.mu, self.eps = np.concatenate(mu), np.concatenate(eps)
+        self.threshold = np.concatenate(thr)
+        self.c = len(self.a)
+        self.pair_slice = slice(self.n_ground, self.c)
+        self.pb = self.b[self.n_ground :]
+        self.pa = self.a[self.n_ground :]
+        # Incidence (C, n): which bodies each contact touches (for the mass-splitting counts).
+        self.incidence = np.zeros((self.c, n))
+        self.incidence[np.arange(self.c), self.a] = 1.0
+        has_b = self.b >= 0
+        self.incidence[np.arange(self.c)[has_b], self.b[has_b]] = 1.0
+        self.single_body = n == 1
+        # Projection shares (P, n): pair p moves a by +m_b/(m_a+m_b) of its push, b by −m_a/….
+        rows = []
+        if pairs is not None:
+            for pa, pb, _, _ in pairs.groups:
+                for i, j in zip(pa, pb, strict=True):
+                    row = np.zeros(n)
+                    ma, mb = model.mass[i], model.mass[j]
+                    row[i], row[j] = mb / (ma + mb), -ma / (ma + mb)
+                    rows.append(row)
+        self.pair_share = np.array(rows).reshape(len(rows), n)
 
 
 class ContactStage:
     """``stage(old, new) -> State``: the contact response appended to a semi-implicit step."""
 
-    def __init__(self, model, dt, ground=None, pairs=None, iterations=ITERATIONS):
+    def __init__(self, model, dt, ground=None, pairs=None, iterations=MAX_ITERATIONS):
         self.model, self.dt, self.ground, self.pairs = model, dt, ground, pairs
         self.iterations = iterations
-        self.inv_inertia_body = model.inv_inertia  # (n, 3, 3)
+        self.layout = _Layout(model, ground, pairs)
+        # Square roots of the inverse mass matrix: 1/√m and L with L Lᵀ = M0⁻¹ (body axes).
+        self.root_inv_mass = 1.0 / np.sqrt(model.mass)
+        self.root_inv_inertia = np.linalg.cholesky(model.inv_inertia)
+        self.root_inertia = np.linalg.inv(self.root_inv_inertia)  # L⁻¹
 
-    def _inverse_inertia(self, q):
-        rot = quat_to_matrix(q)
-        return rot @ self.inv_inertia_body @ np.swapaxes(rot, -1, -2)
+    # --- assembly -------------------------------------------------------------------------------
 
-    def _sets(self, x0, q0, u0, u1, inv_inertia):
-        sets, model, dt = [], self.model, self.dt
+    def _detect(self, x0, q0):
+        """Arms, normals and gaps of all contacts, (…, C, ·); arm_b for the pair slots only."""
+        arms, normals, gaps, arm_b = [], [], [], None
         if self.ground is not None:
             arm, gap = self.ground.detect(x0, q0)
-            a = None if self.ground.all_bodies else self.ground.bodies
-            sets.append(
-                _Set(a, None, arm, None, _UP, gap, model.ground, model, inv_inertia, u0, u1, dt)
-            )
+            batch = gap.shape[:-2]
+            arms.append(arm.reshape(*batch, -1, 3))
+            gaps.append(gap.reshape(*batch, -1))
+            normals.append(np.broadcast_to(_UP, arms[-1].shape))
         if self.pairs is not None:
-            for a, b, arm_a, arm_b, n, gap in self.pairs.detect(x0, q0):
-                for p in range(len(a)):
-                    sl = (Ellipsis, slice(p, p + 1), slice(None), slice(None))
-                    sets.append(
-                        _Set(
-                            a[p : p + 1],
-                            b[p : p + 1],
-                            arm_a[sl],
-                            arm_b[sl],
-                            n[sl],
-                            gap[sl[:-1]],
-                            model.contacts,
-                            model,
-                            inv_inertia,
-                            u0,
-                            u1,
-                            dt,
-                        )
-                    )
-        return sets
+            arm_bs = []
+            for _, _, arm_a, arm_bb, n, gap in self.pairs.detect(x0, q0):
+                batch = gap.shape[:-2]
+                arms.append(arm_a.reshape(*batch, -1, 3))
+                arm_bs.append(arm_bb.reshape(*batch, -1, 3))
+                normals.append(n.reshape(*batch, -1, 3))
+                gaps.append(gap.reshape(*batch, -1))
+            arm_b = arm_bs[0] if len(arm_bs) == 1 else np.concatenate(arm_bs, axis=-2)
+        if len(arms) == 1:
+            return arms[0], arm_b, normals[0], gaps[0]
+        cat = np.concatenate
+        return cat(arms, -2), arm_b, cat(normals, -2), cat(gaps, -1)
+
+    def _scaled_jacobian(self, basis, arm_a, arm_b, scale):
+        """J M^(-1/2) (N, 3C, 6n): with it, A = J M⁻¹ Jᵀ = J̃ J̃ᵀ and Δu = M^(-1/2) J̃ᵀ λ.
+
+        ``scale`` (N, n, 3, 3) is R L with L Lᵀ = M0⁻¹ (body axes), so that the angular rows
+        (r × b)ᵀ R L give (r × b)ᵀ M⁻¹ (r × b) = |row|²; the linear rows are b / √m.
+        """
+        lay, n_rows = self.layout, 3 * self.layout.c
+        rxb = cross(arm_a[..., None, :], basis)  # (N, C, 3, 3)
+        if lay.single_body:
+            ang = rxb.reshape(-1, n_rows, 3) @ scale[:, 0]
+            lin = basis.reshape(-1, n_rows, 3) * self.root_inv_mass[0]
+            return np.concatenate((lin, ang), axis=-1)
+        ja = np.concatenate(
+            (basis * self.root_inv_mass[lay.a, None, None], rxb @ scale[:, lay.a]), axis=-1
+        )
+        jz = np.zeros((len(basis), lay.c, self.model.n_bodies, 3, 6))
+        jz[:, np.arange(lay.c), lay.a] = ja
+        if arm_b is not None:
+            bp = basis[:, lay.pair_slice]
+            rxb_b = cross(arm_b[..., None, :], bp)
+            jb = np.concatenate(
+                (bp * self.root_inv_mass[lay.pb, None, None], rxb_b @ scale[:, lay.pb]), axis=-1
+            )
+            jz[:, np.arange(lay.n_ground, lay.c), lay.pb] = -jb
+        return np.swapaxes(jz, -3, -2).reshape(len(basis), n_rows, -1)
+
+    # --- the stage ------------------------------------------------------------------------------
 
     def __call__(self, old: State, new: State) -> State:
-        dt = self.dt
-        x0, q0, v0, w0 = old.arrays()
-        x1, q1, v1, w1 = new.arrays()
-        u0 = np.concatenate((v0, w0), axis=-1)
-        u1 = np.concatenate((v1, w1), axis=-1)
-        inv_inertia = self._inverse_inertia(q0)
-        sets = self._sets(x0, q0, u0, u1, inv_inertia)
-        # Nothing within reach this step anywhere in the batch: the free step stands.
-        if not any(np.any(s.gap + dt * np.minimum(s.vn1, 0.0) < 0) for s in sets):
+        dt, lay = self.dt, self.layout
+        n = self.model.n_bodies
+        batch = old.position.shape[:-2]
+        flat = [a.reshape(-1, n, a.shape[-1]) for a in (*old.arrays(), *new.arrays())]
+        x0, q0 = flat[0], flat[1]
+        arm_a, arm_b, normal, gap = self._detect(x0, q0)
+        u1 = np.concatenate(flat[6:], axis=-1)  # (N, n, 6)
+        ua = u1 if lay.single_body else u1[:, lay.a]
+        vrel = ua[..., :3] + cross(ua[..., 3:], arm_a)
+        if arm_b is not None:
+            ub = u1[:, lay.pb]
+            vrel[:, lay.pair_slice] -= ub[..., :3] + cross(ub[..., 3:], arm_b)
+        vn1 = np.sum(vrel * normal, axis=-1)
+        # Only batch elements with a contact within reach this step pay for the solve.
+        engaged = np.any(gap + dt * np.minimum(vn1, 0.0) < 0, axis=-1)
+        if not engaged.any():
             return new
-        slots = [slot for s in sets for slot in s.slots()]
-        u = u1.copy()
-        self._warm_start(sets, slots, u, "target", "lam_n", sets[0].vn1 if sets else None)
-        _main_pass(slots, u, self.iterations)
-        v, w = u[..., :3], u[..., 3:]
-        x = x1 + dt * (v - v1)
-        turned = quat_normalize(quat_multiply(quat_exp(dt * (w - w1)), q1))
-        # Bodies the contacts left alone keep q₁ bit for bit, as when nothing in the batch is in
-        # reach (the early return above): an element's step must not depend on the rest of the
-        # batch (a vector env equals single envs); renormalising q₁ would change its last bits.
-        q = np.where(np.any(w != w1, axis=-1, keepdims=True), turned, q1)
-        x = self._project(sets, slots, u, x)
-        u = self._restitute(sets, slots, u, u1, q0, v0, w0)
-        return State(x, q, np.array(u[..., :3]), np.array(u[..., 3:]))
+        if engaged.all():
+            result = self._solve(flat, u1, arm_a, arm_b, normal, gap, vrel, vn1)
+        else:
+            sub = np.flatnonzero(engaged)
+            part = self._solve(
+                [a[sub] for a in flat],
+                u1[sub],
+                arm_a[sub],
+                None if arm_b is None else arm_b[sub],
+                normal[sub],
+                gap[sub],
+                vrel[sub],
+                vn1[sub],
+            )
+            result = [np.array(a) for a in flat[4:]]
+            for full, got in zip(result, part, strict=True):
+                full[sub] = got
+        return State(*(a.reshape(*batch, n, a.shape[-1]) for a in result))
 
-    def _warm_start(self, sets, slots, u, target, key, vn):
-        """Start each ground manifold from the impulse that stops it as a particle, shared
-        equally by its violated slots: exact for a box resting or landing flat (corners
-        symmetric about the centre of mass), so Gauss–Seidel starts at the answer there and
-        only polishes elsewhere. Without it, 10 sweeps leave a resting box jittering at
-        ~3e-3 rad/s (friction couples the corners through the torques of their arms)."""
-        s = sets[0]
-        if s.b is not None or s.gap.shape[-1] == 1:
+    def _solve(self, flat, u1, arm_a, arm_b, normal, gap, vrel, vn1):
+        dt, lay, model = self.dt, self.layout, self.model
+        x0, q0, v0, w0, x1, q1, v1, w1 = flat
+        size, n6 = len(gap), 6 * model.n_bodies
+        t1, t2 = _tangents(normal, vrel, vn1)
+        basis = np.stack((normal, t1, t2), axis=-2)  # (N, C, 3, 3)
+        scale = quat_to_matrix(q0) @ self.root_inv_inertia  # R L, (N, n, 3, 3)
+        jt = self._scaled_jacobian(basis, arm_a, arm_b, scale)  # (N, 3C, 6n)
+        rows = jt.reshape(size, lay.c, 3, n6)
+        diag = np.sum(rows * rows, axis=-1)  # (N, C, 3): the Delassus diagonal
+        coupling = np.sum(rows[:, :, 1:] * rows[:, :, :1], axis=-1)  # A_tn within a contact
+        free = np.concatenate(
+            (vn1[..., None], np.sum(vrel[..., None, :] * basis[:, :, 1:], -1)), -1
+        )
+
+        target = np.where(gap > 0, -gap / dt, 0.0)
+        short = target - vn1
+        if self.pairs is None:
+            lam = np.zeros((size, lay.c, 3))
+            self._warm_start(lam[..., 0], short)
+        else:
+            lam = self._coupled_start(short, jt, free[..., 1:])
+        omega = self._splitting(short > 0)
+        lam = self._main_pass(lam, jt, free, target, omega, diag, coupling)
+
+        dz = lam.reshape(size, 1, -1) @ jt  # (N, 1, 6n): J̃ᵀ λ
+        vel = free + (jt @ dz.reshape(size, n6, 1)).reshape(size, lay.c, 3)
+        u = u1 + self._velocity_change(dz, scale)
+        x = x1 + dt * (u[..., :3] - v1)
+        q = quat_normalize(quat_multiply(quat_exp(dt * (u[..., 3:] - w1)), q1))
+        x = self._project(x, gap + dt * vel[..., 0], normal)
+        u0 = np.concatenate((v0, w0), axis=-1)
+        u = self._restitute(u, u1, u0, q0, lam[..., 0], vn1, gap, vel[..., 0], jt, scale, diag)
+        return x, q, np.array(u[..., :3]), np.array(u[..., 3:])
+
+    def _velocity_change(self, dz, scale):
+        """Δu = M^(-1/2) J̃ᵀ λ from dz = J̃ᵀ λ (N, 1, 6n): Δv = dz_v / √m, Δω = R L dz_ω."""
+        dz = dz.reshape(len(dz), -1, 6)
+        dv = dz[..., :3] * self.root_inv_mass[:, None]
+        dw = (scale @ dz[..., 3:, None])[..., 0]
+        return np.concatenate((dv, dw), axis=-1)
+
+    def _splitting(self, candidate):
+        """Per contact 1/K, K the most candidate contacts on either of its bodies (≥ 1)."""
+        lay = self.layout
+        cand = candidate.astype(float)
+        if lay.single_body:
+            count = np.sum(cand, axis=-1, keepdims=True)
+        else:
+            per_body = cand @ lay.incidence  # (…, n)
+            count = per_body[..., lay.a]
+            if lay.c > lay.n_ground:
+                count[..., lay.pair_slice] = np.maximum(
+                    count[..., lay.pair_slice], per_body[..., lay.pb]
+                )
+        return 1.0 / np.maximum(count, 1.0)
+
+    def _warm_start(self, lam_n, short):
+        """Ground only: start each manifold from the impulse that stops its body as a particle,
+        shared equally by its violated slots: exact for a box resting or landing flat (corners
+        symmetric about the centre of mass), so the iteration starts at the answer there and
+        only polishes elsewhere. Writes into ``lam_n`` (…, C)."""
+        lay = self.layout
+        if lay.n_ground == 0:
             return
-        goal = np.stack([slots[k][target] for k in range(s.gap.shape[-1])], axis=-1)
-        short = goal - vn  # (…, G, K): normal velocity missing per slot
-        violated = short > 0
+        g = len(lay.ground_bodies)
+        s = short[..., : lay.n_ground].reshape(*short.shape[:-1], g, lay.k)
+        violated = s > 0
         count = np.sum(violated, axis=-1, keepdims=True)
-        mass = self.model.mass if s.a is None else self.model.mass[s.a]
-        need = mass[:, None] * np.max(np.where(violated, short, 0.0), axis=-1, keepdims=True)
+        mass = self.model.mass[lay.ground_bodies]
+        need = mass[:, None] * np.max(np.where(violated, s, 0.0), axis=-1, keepdims=True)
         share = np.where(violated, need / np.maximum(count, 1), 0.0)
-        zero_t = np.zeros((*share.shape[:-1], 2))
-        for k in range(share.shape[-1]):
-            slots[k][key] = share[..., k]
-            _apply(slots[k], u, np.concatenate((share[..., k, None], zero_t), axis=-1))
+        lam_n[..., : lay.n_ground] = share.reshape(*short.shape[:-1], -1)
 
-    def _project(self, sets, slots, u, x):
-        """Remove penetration left after the step by moving bodies along the normal."""
-        dt, model = self.dt, self.model
-        x = np.array(x)
-        for s in sets:
-            depth = -(s.gap + dt * s.normal_velocity(u))  # linearised end-of-step penetration
-            if not np.any(depth > 0):
-                continue
-            if s.b is None:
-                lift = np.maximum(np.max(depth, axis=-1), 0.0)  # (…, G)
-                if s.a is None:
-                    x[..., 2] += lift
-                else:
-                    x[..., s.a, 2] += lift
+    def _coupled_start(self, short, jt, slip=None, grow=True):
+        """Warm start of scenes with body–body contacts, (N, C, 3), or (N, C) normal-only when
+        ``slip`` (the free tangential velocities, (N, C, 2)) is None.
+
+        Impulses couple through the bodies (a stack's lower box carries the upper one) and a
+        heavy box on a light one (mass ratio 10³) needs its torques balanced to rounding, which
+        Jacobi does not reach in its budget: the residual grows from step to step. So the
+        contacts are solved directly as equalities (normal: the target; tangents: sticking) on
+        an active set (the simplest pivoting for the LCP, cf. Baraff 1994): start from the
+        violated contacts, solve by pseudo-inverse (redundant supports, e.g. the four corners
+        of a face, get the minimum-norm, symmetric share), clamp λ_n ≥ 0 and λ_t into the
+        friction cone, drop contacts that pull, add those the impulses push in (``grow``);
+        a few rounds. Exact for resting and sticking stacks; the iteration polishes the rest."""
+        lay = self.layout
+        size, c = short.shape
+        rows = 1 if slip is None else 3
+        j = jt[:, 0::3] if slip is None else jt
+        a_full = j @ np.swapaxes(j, -1, -2)
+        goal = short[..., None] if slip is None else np.concatenate((short[..., None], -slip), -1)
+        goal = goal.reshape(size, -1)
+        row_used = np.ones((c, rows), bool)
+        row_used[:, 1:] = (lay.mu > 0)[:, None]
+        eye = np.eye(rows * c)
+        on = short > 0
+        for _ in range(WARM_ROUNDS):
+            live = (on[..., None] & row_used).reshape(size, -1)
+            a = np.where(live[..., :, None] & live[..., None, :], a_full, 0.0)
+            a += np.where(live, 0.0, 1.0)[..., None] * eye
+            lam = (np.linalg.pinv(a) @ np.where(live, goal, 0.0)[..., None]).reshape(size, c, rows)
+            lam_n = np.where(on, np.maximum(lam[..., 0], 0.0), 0.0)
+            if rows == 3:
+                norm = np.linalg.norm(lam[..., 1:], axis=-1)
+                cap = lay.mu * lam_n
+                shrink = np.where(norm > cap, cap / np.where(norm > 0, norm, 1.0), 1.0)
+                lam = np.concatenate((lam_n[..., None], lam[..., 1:] * shrink[..., None]), -1)
             else:
-                push = np.maximum(depth[..., 0], 0.0)[..., None] * s.normal[..., 0, :]
-                ma, mb = model.mass[s.a], model.mass[s.b]
-                x[..., s.a, :] += push * (mb / (ma + mb))[:, None]
-                x[..., s.b, :] -= push * (ma / (ma + mb))[:, None]
+                lam = lam_n[..., None]
+            nxt = on & (lam_n > 0)
+            if grow:
+                pushed = (a_full @ lam.reshape(size, -1, 1)).reshape(size, c, rows)[..., 0]
+                nxt |= ~on & (short - pushed > 0)
+            if np.array_equal(nxt, on):
+                break
+            on = nxt
+        return lam if rows == 3 else lam[..., 0]
+
+    def _converge(self, update, lam, *data):
+        """Iterate ``lam ← update(lam, *data)`` per batch element until none of its impulses
+        changes by more than a relative ``RELATIVE_TOLERANCE``; converged elements drop out, so
+        an element's result does not depend on the rest of the batch and a body at rest (whose
+        warm start is already the answer) costs one iteration."""
+        out, idx, arrays = lam, None, (lam, *data)
+        axes = tuple(range(1, lam.ndim))
+        for _ in range(self.iterations):
+            new = update(*arrays)
+            change = np.max(np.abs(new - arrays[0]), axis=axes)
+            going = change > RELATIVE_TOLERANCE * np.max(np.abs(new), axis=axes)
+            if idx is None:
+                out = new
+            else:
+                out[idx] = new
+            if not going.any():
+                break
+            if going.all():
+                arrays = (new, *arrays[1:])
+            else:
+                keep = np.flatnonzero(going)
+                idx = keep if idx is None else idx[keep]
+                arrays = (new[keep], *(a[keep] for a in arrays[1:]))
+        return out
+
+    def _main_pass(self, lam, jt, free, target, omega, diag, coupling):
+        """Projected Jacobi: normal rows, then the two friction rows seeing that normal update."""
+        c, mu = self.layout.c, self.layout.mu
+
+        def update(lam, jt, free, target, step_n, step_t, coupling):
+            dz = lam.reshape(len(lam), 1, 3 * c) @ jt
+            vel = free + (jt @ np.swapaxes(dz, -1, -2)).reshape(len(lam), c, 3)
+            lam_n = np.maximum(lam[..., 0] + step_n * (target - vel[..., 0]), 0.0)
+            vt = vel[..., 1:] + coupling * (lam_n - lam[..., 0])[..., None]
+            limit = (mu * lam_n)[..., None]
+            lam_t = np.clip(lam[..., 1:] - step_t * vt, -limit, limit)
+            return np.concatenate((lam_n[..., None], lam_t), axis=-1)
+
+        step_n, step_t = omega / diag[..., 0], omega[..., None] / diag[..., 1:]
+        return self._converge(update, lam, jt, free, target, step_n, step_t, coupling)
+
+    def _project(self, x, end_gap, normal):
+        """Remove penetration left after the step by moving bodies along the normal."""
+        lay = self.layout
+        depth = -end_gap  # linearised end-of-step penetration (…, C)
+        if not np.any(depth > 0):
+            return x
+        x = np.array(x)
+        if lay.n_ground:
+            g = len(lay.ground_bodies)
+            dg = depth[..., : lay.n_ground].reshape(*depth.shape[:-1], g, lay.k)
+            lift = np.maximum(np.max(dg, axis=-1), 0.0)  # (…, G)
+            if lay.single_body:
+                x[..., 2] += lift
+            else:
+                x[..., lay.ground_bodies, 2] += lift
+        if lay.c > lay.n_ground:
+            # One push per pair, its deepest slot, split by mass (momentum unchanged).
+            pushes, offset = [], lay.n_ground
+            for pa, _, _, slots in self.pairs.groups:
+                sl = slice(offset, offset + len(pa) * slots)
+                offset = sl.stop
+                d = depth[..., sl].reshape(*depth.shape[:-1], len(pa), slots)
+                n = normal[..., sl, :][..., ::slots, :]
+                pushes.append(np.maximum(np.max(d, axis=-1), 0.0)[..., None] * n)
+            push = pushes[0] if len(pushes) == 1 else np.concatenate(pushes, axis=-2)
+            x += np.einsum("pn,...pk->...nk", lay.pair_share, push)
         return x
 
-    def _restitute(self, sets, slots, u, u1, q0, old_v, old_w):
-        i = 0
-        any_bounce = False
-        for s in sets:
-            eps, threshold = s.material.restitution, s.material.restitution_threshold
-            # Semi-implicit velocities are step means: v₀ ≈ v(t₀ − Δt/2), v₁ ≈ v(t₀ + Δt/2).
-            accel = (s.vn1 - s.vn0) / self.dt
-            v_mid = 0.5 * (s.vn0 + s.vn1)
-            v_end = v_mid + accel * self.dt  # v(t₀ + Δt): the impact lies between
-            lo = np.minimum(v_mid**2, v_end**2)
-            hi = np.maximum(v_mid**2, v_end**2)
-            v_impact = -np.sqrt(np.clip(v_mid**2 - 2 * accel * np.maximum(s.gap, 0.0), lo, hi))
-            # The stored velocity after the step is v(t₁ − Δt/2) on the outgoing trajectory,
-            # which leaves the contact at t₁ with −ε v_impact: hence the −a Δt/2.
-            out = -eps * v_impact - 0.5 * accel * self.dt
-            for k in range(s.gap.shape[-1]):
-                slot = slots[i]
-                i += 1
-                bouncing = (slot["lam_n"] > 0) & (v_impact[..., k] < -threshold) & (eps > 0)
-                bouncing &= s.vn1[..., k] < 0
-                slot["bounce"] = np.where(bouncing, out[..., k], -np.inf)
-                slot["lam_r"] = np.zeros_like(slot["lam_n"])
-                any_bounce = any_bounce or bool(np.any(bouncing))
-        if not any_bounce:
+    def _restitute(self, u, u1, u0, q0, lam_n, vn1, gap, start, jt, scale, diag):
+        lay, dt = self.layout, self.dt
+        size = len(gap)
+        vn0 = (jt[:, 0::3] @ self._scaled_velocity(u0, q0))[..., 0]
+        # Semi-implicit velocities are step means: v₀ ≈ v(t₀ − Δt/2), v₁ ≈ v(t₀ + Δt/2).
+        accel = (vn1 - vn0) / dt
+        v_mid = 0.5 * (vn0 + vn1)
+        v_end = v_mid + accel * dt  # v(t₀ + Δt): the impact lies between
+        lo = np.minimum(v_mid**2, v_end**2)
+        hi = np.maximum(v_mid**2, v_end**2)
+        v_impact = -np.sqrt(np.clip(v_mid**2 - 2 * accel * np.maximum(gap, 0.0), lo, hi))
+        # The stored velocity after the step is v(t₁ − Δt/2) on the outgoing trajectory,
+        # which leaves the contact at t₁ with −ε v_impact: hence the −a Δt/2.
+        out = -lay.eps * v_impact - 0.5 * accel * dt
+        bouncing = (lam_n > 0) & (v_impact < -lay.threshold) & (lay.eps > 0) & (vn1 < 0)
+        if not np.any(bouncing):
             return u
-        before = u.copy()
-        self._warm_start(sets, slots, u, "bounce", "lam_r", sets[0].normal_velocity(u))
-        _restitution_pass(slots, u, self.iterations)
+        goal = np.where(bouncing, out, _NO_BOUNCE)
+        jn = jt[:, 0::3]  # normal rows (N, C, 6n)
+        if self.pairs is None:
+            lam = np.zeros((size, lay.c))
+            self._warm_start(lam, np.where(bouncing, out - start, -1.0))
+        else:
+            lam = self._coupled_start(np.where(bouncing, out - start, -1.0), jt, grow=False)
+        step = self._splitting(bouncing) / diag[..., 0]
+
+        def update(lam, jn, start, goal, step):
+            vn = start + (jn @ (lam[:, None, :] @ jn).reshape(len(lam), -1, 1))[..., 0]
+            return np.maximum(lam + step * (goal - vn), 0.0)
+
+        sub = np.flatnonzero(np.any(bouncing, axis=-1))  # only bouncing elements iterate
+        lam[sub] = self._converge(update, lam[sub], jn[sub], start[sub], goal[sub], step[sub])
+        before = u
+        delta = self._velocity_change(lam[:, None, :] @ jn, scale)
         # Energy guard: KE(before + s Δ) <= KE(u1) with the largest s in [0, 1].
-        delta = u - before
-        inertia = quat_to_matrix(q0) @ self.model.inertia @ np.swapaxes(quat_to_matrix(q0), -1, -2)
+        rot = quat_to_matrix(q0)
+        inertia = rot @ self.model.inertia @ np.swapaxes(rot, -1, -2)
         m = self.model.mass[:, None]
 
         def dot_m(p, r):
@@ -338,15 +463,21 @@ class ContactStage:
 
         # Allowance: one more step of the non-contact forces (2u₁ − u₀), the size of the
         # half-step offsets above; a genuine multi-contact energy gain is larger and is cut.
-        u0 = np.concatenate((old_v, old_w), axis=-1)
         ke_in = np.maximum(dot_m(u1, u1), dot_m(2 * u1 - u0, 2 * u1 - u0))
         limit = 0.5 * ke_in * (1 + 1e-12) - 0.5 * dot_m(before, before)
         lin = dot_m(before, delta)
         quad = 0.5 * dot_m(delta, delta)
+        scale_e = np.ones_like(lin)
         over = lin + quad > limit
         if np.any(over):
             disc = np.sqrt(np.maximum(lin**2 + 4 * quad * np.maximum(limit, 0.0), 0.0))
-            scale = np.where(quad > 0, (-lin + disc) / np.where(quad > 0, 2 * quad, 1.0), 0.0)
-            scale = np.where(over, np.clip(scale, 0.0, 1.0), 1.0)
-            u = before + scale[..., None, None] * delta
-        return u
+            s = np.where(quad > 0, (-lin + disc) / np.where(quad > 0, 2 * quad, 1.0), 0.0)
+            scale_e = np.where(over, np.clip(s, 0.0, 1.0), 1.0)
+        return before + scale_e[..., None, None] * delta
+
+    def _scaled_velocity(self, u, q):
+        """z = M^(1/2) u in the coordinates of J̃ (N, 6n, 1): J u = J̃ z, z_ω = L⁻¹ Rᵀ ω."""
+        rot = quat_to_matrix(q)
+        zv = u[..., :3] / self.root_inv_mass[:, None]
+        zw = (self.root_inertia @ (np.swapaxes(rot, -1, -2) @ u[..., 3:, None]))[..., 0]
+        return np.concatenate((zv, zw), axis=-1).reshape(len(u), -1, 1)
