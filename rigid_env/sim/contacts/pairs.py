@@ -1,9 +1,11 @@
-"""Body–body detection for the pairs a scene can have: sphere–sphere and sphere–box.
+"""Body–body detection for the pairs a scene can have: sphere–sphere, sphere–box, box–box.
 
 Built only when a scene asks for body–body contacts (``Scene(contacts=Material(...))``) and has
-at least two shaped bodies. Each pair yields one contact point (a sphere touches a convex shape
-at one point), as arrays with a slot axis of length 1 so the solver treats them like ground
-slots. Convention: ``normal`` points from body b to body a; ``gap`` < 0 is penetration.
+at least two shaped bodies. A pair involving a sphere yields one contact point (a sphere touches
+a convex shape at one point), a box–box pair a padded manifold of 4 (``box_box.py``); each
+group's arrays carry a slot axis of that length so the solver treats them like ground slots.
+Each kind is built only when the scene has such a pair. Convention: ``normal`` points from body
+b to body a; ``gap`` < 0 is penetration, ``gap`` > 0 a speculative contact.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ import numpy as np
 
 from ..rotation import quat_to_matrix, rotate, rotate_inverse
 from ..shapes import Box, Sphere
+from .box_box import SLOTS as BOX_BOX_SLOTS
+from .box_box import box_box
 
 
 def _unit(v):
@@ -56,10 +60,15 @@ def sphere_box(radius, half_extents):
 
 
 class PairContacts:
-    """All sphere–sphere and sphere–box pairs of a model, grouped by kind, detected batched."""
+    """All sphere–sphere, sphere–box and box–box pairs of a model, grouped by kind, detected
+    batched."""
 
     def __init__(self, bodies):
-        groups: dict[str, list[tuple[int, int]]] = {"sphere_sphere": [], "sphere_box": []}
+        groups: dict[str, list[tuple[int, int]]] = {
+            "sphere_sphere": [],
+            "sphere_box": [],
+            "box_box": [],
+        }
         shaped = [i for i, b in enumerate(bodies) if b.shape is not None]
         for n, i in enumerate(shaped):
             for j in shaped[n + 1 :]:
@@ -70,9 +79,12 @@ class PairContacts:
                     groups["sphere_box"].append((i, j))
                 elif isinstance(si, Box) and isinstance(sj, Sphere):
                     groups["sphere_box"].append((j, i))
+                elif isinstance(si, Box) and isinstance(sj, Box):
+                    groups["box_box"].append((i, j))
                 else:
                     raise ValueError(
-                        f"contacts: body–body contacts support sphere–sphere and sphere–box, "
+                        f"contacts: body–body contacts support sphere–sphere, sphere–box and "
+                        f"box–box, "
                         f"not {type(si).__name__}–{type(sj).__name__} (bodies {i}, {j})"
                     )
         self.groups = []
@@ -81,24 +93,31 @@ class PairContacts:
                 continue
             a = np.array([p[0] for p in pairs])
             b = np.array([p[1] for p in pairs])
+            slots = 1
             if kind == "sphere_sphere":
                 fn = sphere_sphere(
                     [bodies[i].shape.radius for i in a], [bodies[j].shape.radius for j in b]
                 )
-            else:
+            elif kind == "sphere_box":
                 fn = sphere_box(
                     [bodies[i].shape.radius for i in a],
                     np.stack([bodies[j].shape.half_extents for j in b]),
                 )
-            self.groups.append((a, b, fn, 1))
+            else:
+                fn = box_box(
+                    np.stack([bodies[i].shape.half_extents for i in a]),
+                    np.stack([bodies[j].shape.half_extents for j in b]),
+                )
+                slots = BOX_BOX_SLOTS
+            self.groups.append((a, b, fn, slots))
         self.n_pairs = sum(len(g[0]) for g in self.groups)
 
     def detect(self, x, q):
-        """List of (a, b, arm_a, arm_b, normal, gap) with a slot axis of length 1."""
+        """List of (a, b, arm_a, arm_b, normal, gap), each with its group's slot axis."""
         out = []
         for a, b, fn, _ in self.groups:
             arm_a, arm_b, n, gap = fn(x[..., a, :], q[..., a, :], x[..., b, :], q[..., b, :])
-            if gap.ndim == arm_a.ndim - 1:  # one point per pair: add the slot axis
+            if gap.ndim == x.ndim - 1:  # (…, P): one point per pair, add the slot axis
                 arm_a, arm_b, n, gap = (
                     arm_a[..., None, :],
                     arm_b[..., None, :],

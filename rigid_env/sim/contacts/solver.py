@@ -49,6 +49,7 @@ from ..state import State
 
 MAX_ITERATIONS = 20
 RELATIVE_TOLERANCE = 1e-13
+WARM_ROUNDS = 6  # active-set rounds of the coupled warm start (a stack of two needs 2–3)
 _UP = np.array([0.0, 0.0, 1.0])
 _NO_BOUNCE = -1e30  # restitution target of contacts that do not bounce: never binding
 
@@ -244,8 +245,11 @@ class ContactStage:
 
         target = np.where(gap > 0, -gap / dt, 0.0)
         short = target - vn1
-        lam = np.zeros((size, lay.c, 3))
-        self._warm_start(lam[..., 0], short)
+        if self.pairs is None:
+            lam = np.zeros((size, lay.c, 3))
+            self._warm_start(lam[..., 0], short)
+        else:
+            lam = self._coupled_start(short, jt, free[..., 1:])
         omega = self._splitting(short > 0)
         lam = self._main_pass(lam, jt, free, target, omega, diag, coupling)
 
@@ -282,8 +286,8 @@ class ContactStage:
         return 1.0 / np.maximum(count, 1.0)
 
     def _warm_start(self, lam_n, short):
-        """Start each ground manifold from the impulse that stops it as a particle, shared
-        equally by its violated slots: exact for a box resting or landing flat (corners
+        """Ground only: start each manifold from the impulse that stops its body as a particle,
+        shared equally by its violated slots: exact for a box resting or landing flat (corners
         symmetric about the centre of mass), so the iteration starts at the answer there and
         only polishes elsewhere. Writes into ``lam_n`` (…, C)."""
         lay = self.layout
@@ -298,22 +302,51 @@ class ContactStage:
         share = np.where(violated, need / np.maximum(count, 1), 0.0)
         lam_n[..., : lay.n_ground] = share.reshape(*short.shape[:-1], -1)
 
-    def _warm_start(self, lam_n, short):
-        """Start each ground manifold from the impulse that stops it as a particle, shared
-        equally by its violated slots: exact for a box resting or landing flat (corners
-        symmetric about the centre of mass), so the iteration starts at the answer there and
-        only polishes elsewhere. Writes into ``lam_n`` (…, C)."""
+    def _coupled_start(self, short, jt, slip=None, grow=True):
+        """Warm start of scenes with body–body contacts, (N, C, 3), or (N, C) normal-only when
+        ``slip`` (the free tangential velocities, (N, C, 2)) is None.
+
+        Impulses couple through the bodies (a stack's lower box carries the upper one) and a
+        heavy box on a light one (mass ratio 10³) needs its torques balanced to rounding, which
+        Jacobi does not reach in its budget: the residual grows from step to step. So the
+        contacts are solved directly as equalities (normal: the target; tangents: sticking) on
+        an active set (the simplest pivoting for the LCP, cf. Baraff 1994): start from the
+        violated contacts, solve by pseudo-inverse (redundant supports, e.g. the four corners
+        of a face, get the minimum-norm, symmetric share), clamp λ_n ≥ 0 and λ_t into the
+        friction cone, drop contacts that pull, add those the impulses push in (``grow``);
+        a few rounds. Exact for resting and sticking stacks; the iteration polishes the rest."""
         lay = self.layout
-        if lay.n_ground == 0:
-            return
-        g = len(lay.ground_bodies)
-        s = short[..., : lay.n_ground].reshape(*short.shape[:-1], g, lay.k)
-        violated = s > 0
-        count = np.sum(violated, axis=-1, keepdims=True)
-        mass = self.model.mass[lay.ground_bodies]
-        need = mass[:, None] * np.max(np.where(violated, s, 0.0), axis=-1, keepdims=True)
-        share = np.where(violated, need / np.maximum(count, 1), 0.0)
-        lam_n[..., : lay.n_ground] = share.reshape(*short.shape[:-1], -1)
+        size, c = short.shape
+        rows = 1 if slip is None else 3
+        j = jt[:, 0::3] if slip is None else jt
+        a_full = j @ np.swapaxes(j, -1, -2)
+        goal = short[..., None] if slip is None else np.concatenate((short[..., None], -slip), -1)
+        goal = goal.reshape(size, -1)
+        row_used = np.ones((c, rows), bool)
+        row_used[:, 1:] = (lay.mu > 0)[:, None]
+        eye = np.eye(rows * c)
+        on = short > 0
+        for _ in range(WARM_ROUNDS):
+            live = (on[..., None] & row_used).reshape(size, -1)
+            a = np.where(live[..., :, None] & live[..., None, :], a_full, 0.0)
+            a += np.where(live, 0.0, 1.0)[..., None] * eye
+            lam = (np.linalg.pinv(a) @ np.where(live, goal, 0.0)[..., None]).reshape(size, c, rows)
+            lam_n = np.where(on, np.maximum(lam[..., 0], 0.0), 0.0)
+            if rows == 3:
+                norm = np.linalg.norm(lam[..., 1:], axis=-1)
+                cap = lay.mu * lam_n
+                shrink = np.where(norm > cap, cap / np.where(norm > 0, norm, 1.0), 1.0)
+                lam = np.concatenate((lam_n[..., None], lam[..., 1:] * shrink[..., None]), -1)
+            else:
+                lam = lam_n[..., None]
+            nxt = on & (lam_n > 0)
+            if grow:
+                pushed = (a_full @ lam.reshape(size, -1, 1)).reshape(size, c, rows)[..., 0]
+                nxt |= ~on & (short - pushed > 0)
+            if np.array_equal(nxt, on):
+                break
+            on = nxt
+        return lam if rows == 3 else lam[..., 0]
 
     def _converge(self, update, lam, *data):
         """Iterate ``lam ← update(lam, *data)`` per batch element until none of its impulses
@@ -403,8 +436,11 @@ class ContactStage:
             return u
         goal = np.where(bouncing, out, _NO_BOUNCE)
         jn = jt[:, 0::3]  # normal rows (N, C, 6n)
-        lam = np.zeros((size, lay.c))
-        self._warm_start(lam, np.where(bouncing, out - start, -1.0))
+        if self.pairs is None:
+            lam = np.zeros((size, lay.c))
+            self._warm_start(lam, np.where(bouncing, out - start, -1.0))
+        else:
+            lam = self._coupled_start(np.where(bouncing, out - start, -1.0), jt, grow=False)
         step = self._splitting(bouncing) / diag[..., 0]
 
         def update(lam, jn, start, goal, step):
