@@ -13,6 +13,7 @@ import pytest
 
 from rigid_env import sim
 from rigid_env.sim.contacts.box_box import FAR, box_box
+from rigid_env.sim.contacts.solver import ContactStage
 from rigid_env.sim.rotation import quat_exp
 
 G = 9.81
@@ -128,6 +129,85 @@ def test_stack_of_two_stays_at_rest(top_mass):
     np.testing.assert_allclose(state.position, start.position, rtol=0, atol=drift)
     np.testing.assert_allclose(state.linear_velocity, 0.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(state.angular_velocity, 0.0, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("ratio", [1e3, 1e6])
+def test_stack_of_three_at_high_mass_ratio_rests(ratio):
+    # The stability bench's scene: cubes of 1, √ratio, ratio kg at Δt = 1/60. Before the fix
+    # the coupled warm start began from the violated contacts only; the pair contacts' v_n is
+    # rounding noise (±1e-13 m/s at 10³), so it began with 1–2 corners of a face, never
+    # settled, and returned 10⁴ N·s instead of the 170 N·s load: energy ×42 at step 2.
+    half = np.full(3, 0.1)
+    masses = ratio ** np.array([0.0, 0.5, 1.0])
+    scene = sim.Scene(
+        [sim.Body.box(half, float(m)) for m in masses],
+        1 / 60,
+        gravity=GRAVITY,
+        ground=sim.Ground(0.3, 0.5),
+        contacts=sim.Material(0.3, 0.5),
+    )
+    state = scene.initial_state(position=[(0, 0, 0.1), (0, 0, 0.3), (0, 0, 0.5)])
+    start, e0 = state.copy(), scene.energy(state)
+    steps = 300
+    # Rounding of the solve: ε cond(A) g Δt, cond(A) ≲ ratio × 10² (the mass ratio times the
+    # corners' lever-arm spread): 1.1e-16 · 1e2 · ratio · 0.16 ≈ 2e-15 · ratio m/s (measured
+    # 3.5e-12 at 10³, 3e-9 at 10⁶); allow 1e-13 · ratio m/s, ω that over the 0.1 m half size.
+    # Positions integrate it; the energy moves by the top box's weight times that drift.
+    # The bug is metres and m/s; sinking for one step is already g Δt² = 2.7e-3 m.
+    v_tol = 1e-13 * ratio
+    x_tol = steps * scene.dt * v_tol
+    deepest = 0.0
+    for _ in range(steps):
+        state = scene.step(state)
+        z = state.position[:, 2]
+        deepest = max(deepest, -min(z[0] - 0.1, *(np.diff(z) - 0.2)))
+        assert scene.energy(state) <= e0 + masses[-1] * G * x_tol
+    assert deepest <= x_tol
+    np.testing.assert_allclose(state.position, start.position, rtol=0, atol=x_tol)
+    np.testing.assert_allclose(state.linear_velocity, 0.0, rtol=0, atol=v_tol)
+    np.testing.assert_allclose(state.angular_velocity, 0.0, rtol=0, atol=v_tol / 0.1)
+
+
+def test_tilted_landing_on_a_box_never_gains_kinetic_energy():
+    # ε = 0: the contact pass alone. At its solution ΔKE = λᵀv⁺ − ½λᵀAλ ≤ 0 (solver.py,
+    # ``_dissipative``), so each step's velocities carry no more kinetic energy than the same
+    # step without contacts (both evaluated at the step's initial orientation, as the solver
+    # does); 1e-12 relative is rounding. The 1/K-relaxed Jacobi overshot here: +3e4 relative.
+    bodies = [sim.Body.box(HALF, 1.0), sim.Body.box(HALF, 1.0)]
+    scene = sim.Scene(
+        bodies,
+        1 / 240,
+        gravity=GRAVITY,
+        ground=sim.Ground(0.0, 0.5),
+        contacts=sim.Material(0.0, 0.5),
+    )
+    free = sim.Scene(bodies, 1 / 240, integrator=scene.integrator, gravity=GRAVITY)
+    state = scene.initial_state(
+        position=[(0, 0, 0.2), (0.03, -0.02, 0.75)],
+        orientation=[IDENTITY, quat_exp(np.array([0.3, -0.2, 0.5]))],
+        angular_velocity=[(0, 0, 0), (1.0, -2.0, 0.5)],
+    )
+
+    def kinetic(s, v, w):
+        return scene.kinetic_energy(sim.State(s.position, s.orientation, v, w))
+
+    for _ in range(300):
+        new, ref = scene.step(state), free.step(state)
+        got = kinetic(state, new.linear_velocity, new.angular_velocity)
+        assert got <= kinetic(state, ref.linear_velocity, ref.angular_velocity) * (1 + 1e-12)
+        state = new
+
+
+def test_energy_guard_cuts_a_gaining_impulse_and_keeps_a_solution():
+    # In z = M^(1/2) u coordinates KE = ½|z|². A plastic stop (dz = −z₁) is a solution and
+    # passes unchanged; an over-reversal (−2.5 z₁) and a push along z₁ add energy and are cut
+    # to the ray's minimum, which for dz ∥ z₁ is the plastic stop (s = 0.4) or no push (s = 0).
+    z1 = np.array([[[1.0], [2.0], [-0.5]]])
+    lam = np.ones((1, 2, 3))
+    for dz, s_want in ((-z1, 1.0), (-2.5 * z1, 0.4), (3 * z1, 0.0)):
+        out_lam, out_dz = ContactStage._dissipative(lam, np.swapaxes(dz, -1, -2), z1)
+        np.testing.assert_allclose(out_lam, s_want * lam, rtol=1e-15)
+        np.testing.assert_allclose(out_dz, s_want * np.swapaxes(dz, -1, -2), rtol=1e-15)
 
 
 def test_box_dropped_flat_onto_a_box_lands_without_spinning():

@@ -10,11 +10,13 @@ c = b + A λ and a few element-wise clamps over all contacts and the whole batch
 
 The iteration is projected Jacobi with mass splitting (Tonge, English, Catto & Pasquale,
 "Mass splitting for jitter-free parallel rigid body simulation", SIGGRAPH 2012): a contact on
-bodies touched by K candidate contacts takes 1/K of its own correction. With the 3×3 contact
-blocks normalised to the identity, A's eigenvalues are at most K (Cauchy–Schwarz on the
-off-diagonal blocks), so the 1/K-relaxed iteration cannot overshoot. Unlike Gauss–Seidel it
-favours no contact, so a symmetric landing stays symmetric (no spin). It stops as soon as no
-impulse changes by more than a relative 1e-13 anywhere in the batch.
+bodies touched by K candidate contacts takes 1/K of its own correction (ground-only scenes). With
+the rows scaled one by one, Cauchy–Schwarz bounds the scaled A's eigenvalues by the number of
+rows on a body, up to 3K with friction; scenes with body–body contacts therefore relax each row
+by the inverse of its Gershgorin row sum over the rows that can carry load, which keeps the
+iteration from overshooting (``_row_steps``). Unlike Gauss–Seidel it favours no contact, so a
+symmetric landing stays symmetric (no spin). It stops as soon as no impulse changes by more
+than a relative 1e-13 anywhere in the batch.
 
 A step (semi-implicit Euler: forces → velocities → contacts → positions):
 
@@ -26,7 +28,8 @@ A step (semi-implicit Euler: forces → velocities → contacts → positions):
    sliding and never reverses it (across it, the pyramid admits up to √2 μ j_n in total).
    Ground manifolds start from the impulse that stops the body as a particle, shared equally
    by the violated corners: exact for a box resting or landing flat, so resting is a fixed
-   point of the step (no jitter, creep or sinking).
+   point of the step (no jitter, creep or sinking). An exact solution removes kinetic energy
+   (``_dissipative``); an impulse that would add some is cut back along its own direction.
 2. Positions drift with the solved velocities: x ← x₁ + Δt (v_s − v₁), q ← exp(Δt (ω_s − ω₁)) q₁,
    which equals x₀ + Δt v_s for the semi-implicit integrators this stage accepts.
 3. *Restitution pass* (velocities only, Box2D v3's ``applyRestitution``): a contact that carried
@@ -248,12 +251,19 @@ class ContactStage:
         if self.pairs is None:
             lam = np.zeros((size, lay.c, 3))
             self._warm_start(lam[..., 0], short)
+            omega = np.broadcast_to(self._splitting(short > 0)[..., None], (size, lay.c, 3))
         else:
-            lam = self._coupled_start(short, jt, free[..., 1:])
-        omega = self._splitting(short > 0)
+            # Contacts that can carry load this step: the violated ones and those the step's
+            # largest velocity correction could close (see ``_coupled_start``).
+            reach = dt * np.max(np.maximum(short, 0.0), axis=-1, keepdims=True)
+            reachable = (short > 0) | (gap <= reach)
+            delassus = jt @ np.swapaxes(jt, -1, -2)
+            lam = self._coupled_start(short, delassus, free[..., 1:], reachable=reachable)
+            omega = self._row_steps(reachable, delassus, diag)
         lam = self._main_pass(lam, jt, free, target, omega, diag, coupling)
-
         dz = lam.reshape(size, 1, -1) @ jt  # (N, 1, 6n): J̃ᵀ λ
+        lam, dz = self._dissipative(lam, dz, self._scaled_velocity(u1, q0))
+
         vel = free + (jt @ dz.reshape(size, n6, 1)).reshape(size, lay.c, 3)
         u = u1 + self._velocity_change(dz, scale)
         x = x1 + dt * (u[..., :3] - v1)
@@ -263,12 +273,50 @@ class ContactStage:
         u = self._restitute(u, u1, u0, q0, lam[..., 0], vn1, gap, vel[..., 0], jt, scale, diag)
         return x, q, np.array(u[..., :3]), np.array(u[..., 3:])
 
+    @staticmethod
+    def _dissipative(lam, dz, z1):
+        """Main-pass energy guard. With z = M^(1/2) u, KE = ½|z|² and the impulse moves z by
+        dz = J̃ᵀ λ, so ΔKE = λᵀ v⁺ − ½ λᵀ A λ (v⁺ the contact velocities after it). At a solution
+        every term of λᵀ v⁺ is ≤ 0 (λ_n > 0 only where v_n⁺ = target ≤ 0; friction at its bound
+        opposes v_t⁺, below it v_t⁺ = 0): the pass can only remove energy. An impulse that adds
+        some is no solution (an unconverged iteration); it is scaled to the most dissipative
+        point of its own ray, s = −z₁·dz / |dz|² ∈ [0, 1] (s = 1 for a plastic stop)."""
+        lin = np.sum(z1[..., 0] * dz[:, 0], axis=-1)
+        quad = np.sum(dz[:, 0] ** 2, axis=-1)
+        gains = lin + 0.5 * quad > 1e-12 * np.sum(z1[..., 0] ** 2, axis=-1)
+        if not np.any(gains):
+            return lam, dz
+        s = np.where(gains, np.clip(-lin / np.where(quad > 0, quad, 1.0), 0.0, 1.0), 1.0)
+        return lam * s[:, None, None], dz * s[:, None, None]
+
     def _velocity_change(self, dz, scale):
         """Δu = M^(-1/2) J̃ᵀ λ from dz = J̃ᵀ λ (N, 1, 6n): Δv = dz_v / √m, Δω = R L dz_ω."""
         dz = dz.reshape(len(dz), -1, 6)
         dv = dz[..., :3] * self.root_inv_mass[:, None]
         dw = (scale @ dz[..., 3:, None])[..., 0]
         return np.concatenate((dv, dw), axis=-1)
+
+    def _row_steps(self, reachable, delassus, diag):
+        """Per-row relaxation (N, C, 3) of scenes with body–body contacts: 1 / Σ_j |Â_ij|, the
+        row sums of the diagonally scaled Delassus matrix Â = D^(-1/2) A D^(-1/2) over the rows
+        that can carry load (normal rows of reachable contacts, their tangent rows if μ > 0).
+
+        Mass splitting's 1/K bounds Â's spectrum only when each contact's 3×3 block is the
+        identity; the rows here are scaled one by one, and a pair row couples two bodies, so a
+        body with K contacts can give Â an eigenvalue up to 3K and the 1/K-relaxed Jacobi
+        overshoots and diverges (a tilted box landing on another gained 4 J in one step). With
+        W = diag(1/row sum), every Gershgorin disc of W Â lies in [0, 1]: the spectral radius
+        of I − W Â is at most 1 on those rows, so the iteration cannot overshoot."""
+        lay = self.layout
+        size, c = reachable.shape
+        live = np.broadcast_to(reachable[..., None], (size, c, 3)).copy()
+        live[..., 1:] &= (lay.mu > 0)[:, None]
+        live = live.reshape(size, -1)
+        root = np.sqrt(diag.reshape(size, -1))
+        scaled = np.abs(delassus) / root[:, :, None] / root[:, None, :]
+        rowsum = np.sum(np.where(live[:, None, :], scaled, 0.0), axis=-1)
+        rowsum = np.where(live, rowsum, rowsum + 1.0)  # a row not counted still sees itself
+        return (1.0 / np.maximum(rowsum, 1.0)).reshape(size, c, 3)
 
     def _splitting(self, candidate):
         """Per contact 1/K, K the most candidate contacts on either of its bodies (≥ 1)."""
@@ -302,9 +350,10 @@ class ContactStage:
         share = np.where(violated, need / np.maximum(count, 1), 0.0)
         lam_n[..., : lay.n_ground] = share.reshape(*short.shape[:-1], -1)
 
-    def _coupled_start(self, short, jt, slip=None, grow=True):
+    def _coupled_start(self, short, a_full, slip=None, grow=True, reachable=None):
         """Warm start of scenes with body–body contacts, (N, C, 3), or (N, C) normal-only when
-        ``slip`` (the free tangential velocities, (N, C, 2)) is None.
+        ``slip`` (the free tangential velocities, (N, C, 2)) is None; ``a_full`` is the
+        Delassus matrix of the rows solved, (N, 3C, 3C) or (N, C, C).
 
         Impulses couple through the bodies (a stack's lower box carries the upper one) and a
         heavy box on a light one (mass ratio 10³) needs its torques balanced to rounding, which
@@ -318,14 +367,19 @@ class ContactStage:
         lay = self.layout
         size, c = short.shape
         rows = 1 if slip is None else 3
-        j = jt[:, 0::3] if slip is None else jt
-        a_full = j @ np.swapaxes(j, -1, -2)
         goal = short[..., None] if slip is None else np.concatenate((short[..., None], -slip), -1)
         goal = goal.reshape(size, -1)
         row_used = np.ones((c, rows), bool)
         row_used[:, 1:] = (lay.mu > 0)[:, None]
         eye = np.eye(rows * c)
-        on = short > 0
+        # Start from every contact that could carry load this step: the violated ones, and those
+        # the step's largest velocity correction could close, gap ≤ Δt max(short⁺). Starting
+        # from the violated ones only misses resting contacts whose velocity is rounding noise
+        # of the previous solve (±1e-13 m/s at mass ratio 10³, ±1e-5 at 10⁶: the error of a
+        # solve at cond(A) ≈ ratio²): a face with 1 or 2 of its 4 corners on, sticking, needs
+        # pulls, and the rounds never settle (a 3-box stack at 10³ got 10⁴ N·s instead of 170).
+        on = short > 0 if reachable is None else reachable
+        settled = np.zeros(size, bool)
         for _ in range(WARM_ROUNDS):
             live = (on[..., None] & row_used).reshape(size, -1)
             a = np.where(live[..., :, None] & live[..., None, :], a_full, 0.0)
@@ -343,9 +397,16 @@ class ContactStage:
             if grow:
                 pushed = (a_full @ lam.reshape(size, -1, 1)).reshape(size, c, rows)[..., 0]
                 nxt |= ~on & (short - pushed > 0)
-            if np.array_equal(nxt, on):
+            settled = np.all(nxt == on, axis=-1)
+            if settled.all():
                 break
-            on = nxt
+            on = np.where(settled[:, None], on, nxt)
+        if not settled.all():
+            # An unsettled set's equality solution is no LCP solution (it can be 100× the load):
+            # those elements start the iteration from the ground particle start instead.
+            fallback = np.zeros((size, c, rows))
+            self._warm_start(fallback[..., 0], short)
+            lam = np.where(settled[:, None, None], lam, fallback)
         return lam if rows == 3 else lam[..., 0]
 
     def _converge(self, update, lam, *data):
@@ -386,7 +447,7 @@ class ContactStage:
             lam_t = np.clip(lam[..., 1:] - step_t * vt, -limit, limit)
             return np.concatenate((lam_n[..., None], lam_t), axis=-1)
 
-        step_n, step_t = omega / diag[..., 0], omega[..., None] / diag[..., 1:]
+        step_n, step_t = omega[..., 0] / diag[..., 0], omega[..., 1:] / diag[..., 1:]
         return self._converge(update, lam, jt, free, target, step_n, step_t, coupling)
 
     def _project(self, x, end_gap, normal):
@@ -440,7 +501,8 @@ class ContactStage:
             lam = np.zeros((size, lay.c))
             self._warm_start(lam, np.where(bouncing, out - start, -1.0))
         else:
-            lam = self._coupled_start(np.where(bouncing, out - start, -1.0), jt, grow=False)
+            delassus = jn @ np.swapaxes(jn, -1, -2)
+            lam = self._coupled_start(np.where(bouncing, out - start, -1.0), delassus, grow=False)
         step = self._splitting(bouncing) / diag[..., 0]
 
         def update(lam, jn, start, goal, step):
