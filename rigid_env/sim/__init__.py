@@ -6,7 +6,6 @@ angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
 
 from . import rotation
 from .body import Body
-from .integrators import REGISTRY as _REGISTRY
 from .model import Ground, Material, Model, Spring
 from .scene import (
     CONTACT_INTEGRATOR,
@@ -35,4 +34,3 @@ __all__ = [
     "State",
     "rotation",
 ]
-del _REGISTRY
