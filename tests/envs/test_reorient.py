@@ -7,8 +7,6 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 from env_testing import (
-    BAD_ACTIONS,
-    assert_bad_action_rejected,
     assert_deterministic,
     assert_frame_ok,
     assert_picklable,
@@ -64,52 +62,7 @@ def test_vector_env_equals_single_envs_seeded_s_plus_i(kwargs):
     assert ends >= 4, "the rollout must exercise autoreset"
 
 
-def test_autoreset_ignores_the_action_and_returns_reset_values():
-    envs = [make_vec(ID, 2, max_episode_steps=3) for _ in range(2)]
-    for env in envs:
-        env.reset(seed=7)
-        for _ in range(3):
-            _, _, _, truncated, _ = env.step(np.zeros((2, 3), np.float32))
-        assert truncated.all()
-    a = envs[0].step(np.ones((2, 3), np.float32))
-    b = envs[1].step(-np.ones((2, 3), np.float32))
-    assert np.array_equal(a[0], b[0]), "the action on the autoreset step must be ignored"
-    assert not a[1].any() and not a[2].any() and not a[3].any()
-    assert np.all(a[0][:, 7:] == 0), "previous action is cleared at reset"
-
-
-def test_vector_reset_seed_list_and_reset_mask():
-    env = make_vec(ID, 3)
-    obs, _ = env.reset(seed=[5, 6, 7])
-    ref, _ = make_vec(ID, 3).reset(seed=5)
-    assert np.array_equal(obs, ref)
-    env.step(0.5 * np.ones((3, 3), np.float32))
-    moved, _, _, _, _ = env.step(0.5 * np.ones((3, 3), np.float32))
-    partial, _ = env.reset(options={"reset_mask": np.array([False, True, False])})
-    assert np.array_equal(partial[[0, 2]], moved[[0, 2]])
-    assert not np.array_equal(partial[1], moved[1])
-    with pytest.raises(ValueError, match="reset_mask"):
-        env.reset(options={"reset_mask": np.array([False, False, False])})
-
-
 # --- bad input -----------------------------------------------------------------------------------
-
-
-@pytest.mark.parametrize("kind", BAD_ACTIONS)
-def test_bad_actions_raise_and_leave_env_usable(kind):
-    assert_bad_action_rejected(ID, kind)
-
-
-def test_bad_vector_action_raises_and_leaves_env_usable():
-    env, twin = make_vec(ID, 2), make_vec(ID, 2)
-    env.reset(seed=1)
-    twin.reset(seed=1)
-    with pytest.raises(ValueError, match="action"):
-        env.step(np.full((2, 3), np.nan))
-    with pytest.raises(ValueError, match="action"):
-        env.step(np.zeros(3))
-    good = 0.2 * np.ones((2, 3), np.float32)
-    assert np.array_equal(env.step(good)[0], twin.step(good)[0])
 
 
 @pytest.mark.parametrize(
