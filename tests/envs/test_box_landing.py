@@ -36,6 +36,18 @@ EPS = np.finfo(float).eps
 HALF = np.array([0.1, 0.15, 0.2])  # the default box
 # Short drops that land within a few steps: cheap episodes with contact.
 LOW = dict(height_range=(0.3, 0.5), frame_skip=4)
+# Nearly upright flat drops with loose thresholds: episodes end by success (termination).
+SETTLING = dict(
+    height_range=(0.28, 0.3),
+    tilt_range=(0.0, 0.05),
+    spin_range=(0.0, 0.1),
+    horizontal_speed_range=(0.0, 0.0),
+    vertical_velocity_range=(0.0, 0.0),
+    speed_threshold=0.5,
+    spin_threshold=2.0,
+    hold_time=0.05,
+    frame_skip=4,
+)
 
 
 def resting_pose(face: str) -> tuple[np.ndarray, np.ndarray]:
@@ -83,18 +95,7 @@ def test_same_seed_same_trajectory_bit_for_bit():
     "kwargs",
     [
         LOW,  # truncation-driven autoreset, with touchdowns in some sub-envs and not others
-        # Nearly upright flat drops with loose thresholds: episodes end by success.
-        dict(
-            height_range=(0.28, 0.3),
-            tilt_range=(0.0, 0.05),
-            spin_range=(0.0, 0.1),
-            horizontal_speed_range=(0.0, 0.0),
-            vertical_velocity_range=(0.0, 0.0),
-            speed_threshold=0.5,
-            spin_threshold=2.0,
-            hold_time=0.05,
-            frame_skip=4,
-        ),
+        SETTLING,
         dict(LOW, integrator="euler", target_face="random", restitution=0.8, friction=0.2),
     ],
     ids=["truncation", "termination", "euler-random-face-bouncy"],
@@ -107,19 +108,7 @@ def test_vector_env_equals_single_envs_seeded_s_plus_i(kwargs):
 
 
 def test_termination_case_really_terminates():
-    env = make_vec(
-        ID,
-        4,
-        height_range=(0.28, 0.3),
-        tilt_range=(0.0, 0.05),
-        spin_range=(0.0, 0.1),
-        horizontal_speed_range=(0.0, 0.0),
-        vertical_velocity_range=(0.0, 0.0),
-        speed_threshold=0.5,
-        spin_threshold=2.0,
-        hold_time=0.05,
-        frame_skip=4,
-    )
+    env = make_vec(ID, 4, **SETTLING)
     env.reset(seed=100)
     terminated = np.zeros(4, bool)
     for _ in range(20):
