@@ -251,9 +251,9 @@ def train(
     vector step: when it returns True the run saves a checkpoint and returns with status
     ``"interrupted"`` (continue it with :func:`resume`). ``on_evaluation(row)`` is called after
     each periodic evaluation (e.g. to report to a tuner)."""
-    plan = make_plan(env_id, algo, timesteps, seed, n_envs, overrides, eval_seed, checkpoint_every)
-    out = Path(out) if out is not None else default_out(env_id, algo)
+    out = Path(out) if out is not None else default_out(str(env_id), str(algo))
     run_folder.check_new(out, overwrite)
+    plan = make_plan(env_id, algo, timesteps, seed, n_envs, overrides, eval_seed, checkpoint_every)
     env, adapter, timed = _make_env(plan)
     env.seed(plan.seed)
     cls = config.algo_class(plan.algo)
@@ -509,10 +509,9 @@ class _Session:
         return result
 
     def _write_tables(self, result: RunResult) -> None:
-        from .plots import learning_curve
-
         if not result.evaluations:
             return
+        from .plots import learning_curve
         header = list(result.evaluations[0])
         lines = [",".join(header)]
         lines += [",".join(str(r[k]) for k in header) for r in result.evaluations]
@@ -726,6 +725,7 @@ def add_training_arguments(parser: cli.Parser) -> None:
 
 
 def check_training_arguments(args) -> None:
+    """Every check :func:`train` or :func:`resume` will make, done now (UsageError)."""
     if args.resume is not None:
         given = [f"--{f.replace('_', '-')}" for f in TRAINING_FLAGS if getattr(args, f) is not None]
         if given:
@@ -733,7 +733,19 @@ def check_training_arguments(args) -> None:
                 f"--resume continues RUN_DIR with the settings in its run.json; drop {given}"
             )
         run_folder.read_resumable(args.resume)
+        return
     args.overrides = parse_overrides(args.set or [])
+    if args.out is not None:
+        run_folder.check_new(Path(args.out), args.overwrite)
+    make_plan(
+        args.env or DEFAULT_ENV,
+        args.algo or "ppo",
+        args.timesteps,
+        0 if args.seed is None else args.seed,
+        args.n_envs,
+        args.overrides,
+        checkpoint_every=args.checkpoint_every,
+    )
 
 
 def run_training(args, stop: Callable[[], bool]) -> RunResult:

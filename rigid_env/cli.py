@@ -113,10 +113,10 @@ def writable_dir(path: str | Path, name: str) -> Path:
 def writable_file(path: str | Path, name: str, suffixes: tuple[str, ...] = ()) -> Path:
     """Check that file ``path`` (with one of ``suffixes``) can be written; creates its folder."""
     path = Path(path)
-    if suffixes and path.suffix.lower() not in suffixes:
-        raise UsageError(f"{name}: {path} should end in {' or '.join(suffixes)}")
     if path.is_dir():
         raise UsageError(f"{name}: {path} is a directory; expected a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise UsageError(f"{name}: {path} should end in {' or '.join(suffixes)}")
     writable_dir(path.parent, name)
     if path.exists() and not os.access(path, os.W_OK):
         raise UsageError(f"{name}: {path} is not writable")
