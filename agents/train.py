@@ -512,6 +512,7 @@ class _Session:
         if not result.evaluations:
             return
         from .plots import learning_curve
+
         header = list(result.evaluations[0])
         lines = [",".join(header)]
         lines += [",".join(str(r[k]) for k in header) for r in result.evaluations]

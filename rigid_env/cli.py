@@ -10,8 +10,10 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -33,7 +35,10 @@ class Parser(argparse.ArgumentParser):
 
 def run(main: Callable[[Sequence[str] | None], int | None], prog: str, argv=None) -> int:
     """Call ``main(argv)``; return its exit status, 2 after a :class:`UsageError` and 130 after
-    Ctrl-C, each reported in one line on stderr."""
+    Ctrl-C or SIGTERM (raised as ``KeyboardInterrupt``, so ``finally`` blocks and atomic writes
+    clean up), each reported in one line on stderr."""
+    main_thread = threading.current_thread() is threading.main_thread()  # signals live there
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt) if main_thread else None
     try:
         return main(argv) or 0
     except UsageError as error:
@@ -42,6 +47,13 @@ def run(main: Callable[[Sequence[str] | None], int | None], prog: str, argv=None
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr, flush=True)
         return EXIT_INTERRUPTED
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 # --- argparse types: each failure names the value and what is expected ----------------------------

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -63,6 +65,9 @@ def files(tmp_path, monkeypatch):
     (tmp_path / "done").mkdir()
     record = {"env_id": ID, "algo": "ppo", "status": "finished", "steps_done": 64}
     (tmp_path / "done" / "run.json").write_text(json.dumps(record))
+    (tmp_path / "broken").mkdir()
+    (tmp_path / "broken" / "run.json").write_text('{"env_id": ')
+    (tmp_path / "broken" / "model.zip").write_bytes(b"")
     (tmp_path / "bad.zip").write_bytes(os.urandom(300))
     with zipfile.ZipFile(tmp_path / "nodata.zip", "w") as archive:
         archive.writestr("other", "x")
@@ -94,6 +99,7 @@ TRAIN_CASES = [
     (["--out", "done"], "--resume done"),
     (["--resume", "done"], "is finished"),
     (["--resume", "nowhere"], "no run.json"),
+    (["--resume", "broken"], "run.json: unreadable"),
     (["--resume", "done", "--timesteps", "10"], "drop ['--timesteps']"),
     (["--resume", "done", "--overwrite"], "not allowed with argument"),
 ]
@@ -139,6 +145,7 @@ EVALUATE_CASES = [
     (["--policy", "bad.zip"], "BadZipFile"),
     (["--policy", "nodata.zip"], "KeyError"),
     (["--policy", "badjson.zip"], "JSONDecodeError"),
+    (["--policy", "broken/model.zip"], "run.json: unreadable"),
     (["--gif", "file.txt/clip.gif"], "--gif"),
     (["--gif", "notes"], "is a directory"),
     (["--gif", "clip.png"], "should end in .gif"),
@@ -258,3 +265,22 @@ def test_run_folder_policy_without_the_command_line(tmp_path):
     with pytest.raises(ValueError, match="seed"):
         train_cli.train(ID, seed=-1, out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
+
+
+def test_sigterm_stops_any_command_with_status_130_without_traceback(tmp_path):
+    """Outside training too (here a benchmark), SIGTERM ends a command like Ctrl-C does."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    argv = ["rigid_env.bench.env_speed", ID, "--seconds", "2", "--num-envs", "4"]
+    out = tmp_path / "stdout.txt"
+    with out.open("w") as stdout:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", *argv], env=env, stdout=stdout, stderr=subprocess.PIPE, text=True
+        )
+        deadline = time.monotonic() + 60
+        while "single env" not in out.read_text():  # printed after the first 2 s of stepping
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == cli.EXIT_INTERRUPTED
+    stderr = proc.stderr.read()
+    assert "Traceback" not in stderr and "interrupted" in stderr
