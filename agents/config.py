@@ -8,20 +8,14 @@ the rest are keyword arguments of the SB3 algorithm, with two conveniences from 
 
 from __future__ import annotations
 
-import inspect
 import re
 from pathlib import Path
 
 import yaml
 
-from rigid_env.cli import UsageError
-
 HYPERPARAMS_DIR = Path(__file__).with_name("hyperparams")
 LOOP_KEYS = ("n_timesteps", "n_envs", "env_kwargs", "eval_freq", "eval_episodes")
-POSITIVE_LOOP_KEYS = ("n_timesteps", "n_envs", "eval_freq", "eval_episodes")
 ALGOS = ("ppo", "sac")
-# Set by agents.train itself, never by a config file or an override.
-RESERVED = ("self", "env", "seed", "device", "verbose", "_init_setup_model", "tensorboard_log")
 
 
 def config_path(env_id: str) -> Path:
@@ -34,49 +28,17 @@ def config_path(env_id: str) -> Path:
 def load(env_id: str, algo: str) -> tuple[dict, dict]:
     """(loop settings, algorithm kwargs) for ``env_id`` and ``algo``, schedules resolved."""
     if algo not in ALGOS:
-        raise UsageError(f"algo must be one of {ALGOS}, got {algo!r}")
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
     path = config_path(env_id)
     if not path.exists():
-        raise UsageError(f"env_id: no hyperparameter file {path} for {env_id!r}")
+        raise ValueError(f"env_id: no hyperparameter file {path} for {env_id!r}")
     blocks = yaml.safe_load(path.read_text())
     if algo not in blocks:
-        raise UsageError(f"algo: {path.name} has no {algo!r} block")
+        raise ValueError(f"algo: {path.name} has no {algo!r} block")
     params = dict(blocks[algo])
     loop = {k: params.pop(k) for k in LOOP_KEYS if k in params}
     loop.setdefault("env_kwargs", {})
     return loop, resolve(params)
-
-
-def algo_class(algo: str):
-    from stable_baselines3 import PPO, SAC
-
-    return {"ppo": PPO, "sac": SAC}[algo]
-
-
-def split_overrides(algo: str, overrides: dict) -> tuple[dict, dict]:
-    """(loop settings, algorithm kwargs) from user ``overrides``; UsageError for a key that is
-    neither a loop key nor an argument of the algorithm, or a loop value of the wrong kind."""
-    allowed = set(inspect.signature(algo_class(algo).__init__).parameters) - set(RESERVED)
-    loop, kwargs = {}, {}
-    for key, value in overrides.items():
-        if key in LOOP_KEYS:
-            loop[key] = value
-        elif key in allowed:
-            kwargs[key] = value
-        else:
-            raise UsageError(
-                f"overrides (--set): unknown key {key!r} for {algo}; expected one of "
-                f"{sorted((*LOOP_KEYS, *allowed))}"
-            )
-    for key in POSITIVE_LOOP_KEYS:
-        value = loop.get(key)
-        if value is not None and (type(value) is not int or value < 1):
-            raise UsageError(f"overrides (--set): {key} must be an integer >= 1, got {value!r}")
-    if not isinstance(loop.get("env_kwargs", {}), dict):
-        raise UsageError(
-            f"overrides (--set): env_kwargs must be a mapping, got {loop['env_kwargs']!r}"
-        )
-    return loop, kwargs
 
 
 def resolve(params: dict) -> dict:
@@ -87,16 +49,10 @@ def resolve(params: dict) -> dict:
     for key in ("learning_rate", "clip_range"):
         value = out.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
-            try:
-                out[key] = linear_schedule(float(value[4:]))
-            except ValueError:
-                raise UsageError(f"{key}: expected lin_<number>, got {value!r}") from None
+            out[key] = linear_schedule(float(value[4:]))
     kwargs = dict(out.get("policy_kwargs") or {})
-    name = kwargs.get("activation_fn")
-    if isinstance(name, str):
-        if not isinstance(getattr(torch.nn, name, None), type):
-            raise UsageError(f"policy_kwargs.activation_fn: {name!r} is not a torch.nn module")
-        kwargs["activation_fn"] = getattr(torch.nn, name)
+    if isinstance(kwargs.get("activation_fn"), str):
+        kwargs["activation_fn"] = getattr(torch.nn, kwargs["activation_fn"])
     if kwargs:
         out["policy_kwargs"] = kwargs
     return out

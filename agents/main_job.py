@@ -22,7 +22,7 @@ from rigid_env.files import write_json
 
 from . import run_folder
 from .evaluate import DEFAULT_EPISODES, DEFAULT_SEED, evaluate, print_table, write_gif
-from .train import (
+from .train_cli import (
     EXIT_CODES,
     StopOnSignal,
     add_training_arguments,

@@ -110,7 +110,7 @@ def write(run_dir: Path, record: dict) -> None:
 def load_model(path: str | Path, name: str, env=None):
     """``(model, algo)`` from an SB3 zip (on CPU; ``env`` attached if given); a file that is not
     a readable PPO or SAC model is a :class:`UsageError` naming ``name``."""
-    from . import config
+    from .plan import algo_class
     from .policies import algo_of
 
     path = Path(path)
@@ -118,7 +118,7 @@ def load_model(path: str | Path, name: str, env=None):
         raise UsageError(f"{name}: {path} is not an existing .zip file")
     try:
         algo = algo_of(path)
-        return config.algo_class(algo).load(str(path), env=env, device="cpu"), algo
+        return algo_class(algo).load(str(path), env=env, device="cpu"), algo
     except (zipfile.BadZipFile, KeyError, ValueError, OSError, EOFError, RuntimeError,
             pickle.UnpicklingError) as error:  # fmt: skip
         raise UsageError(

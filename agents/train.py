@@ -30,25 +30,19 @@ from __future__ import annotations
 import functools
 import math
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from rigid_env import cli
 from rigid_env.cli import UsageError
 from rigid_env.files import atomic_open, write_text
 
-from . import config, run_folder
+from . import run_folder
+from .plan import DEFAULT_ENV, DEFAULT_EVAL_SEED, Plan, algo_class, make_plan, plan_of_record
 from .rollout import make_vec, run_episodes
-
-DEFAULT_ENV = "RigidEnv/Reorient-v0"
-DEFAULT_EVAL_SEED = 1000  # evaluation episodes are seeds 1000, 1001, ...: not training streams
-MAX_SEED = 2**32 - 1  # numpy's legacy seeding (used by SB3's set_random_seed) stops here
 
 
 @dataclass
@@ -112,108 +106,6 @@ class RunResult:
     steps_done: int = 0
 
 
-@dataclass
-class Plan:
-    """The validated settings of a run; all of them are stored in ``run.json``."""
-
-    env_id: str
-    algo: str
-    timesteps: int
-    n_envs: int
-    seed: int
-    eval_seed: int
-    eval_freq: int  # env steps between evaluations
-    eval_episodes: int
-    checkpoint_every: int  # env steps between checkpoints
-    env_kwargs: dict
-    overrides: dict  # as the user gave them (plain values)
-    loop: dict  # the config file's loop settings, overrides applied
-    kwargs: dict  # SB3 algorithm arguments, schedules resolved
-
-
-def _count(value, name: str, minimum: int = 1, maximum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise UsageError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    if maximum is not None and value > maximum:
-        raise UsageError(f"{name} must be an integer <= {maximum}, got {value!r}")
-    return int(value)
-
-
-def make_plan(
-    env_id: str = DEFAULT_ENV,
-    algo: str = "ppo",
-    timesteps: int | None = None,
-    seed: int = 0,
-    n_envs: int | None = None,
-    overrides: dict | None = None,
-    eval_seed: int = DEFAULT_EVAL_SEED,
-    checkpoint_every: int | None = None,
-) -> Plan:
-    """Check every setting (``UsageError``, a ``ValueError``, naming the bad one) and fill the
-    defaults from the config file; nothing is created."""
-    import gymnasium as gym
-
-    if not isinstance(env_id, str) or env_id not in gym.registry:
-        ours = sorted(i for i in gym.registry if i.startswith("RigidEnv/"))
-        raise UsageError(f"env_id: unknown env id {env_id!r}; expected one of {ours}")
-    loop, kwargs = config.load(env_id, algo)
-    overrides = dict(overrides or {})
-    loop_overrides, kwarg_overrides = config.split_overrides(algo, overrides)
-    loop.update(loop_overrides)
-    kwargs.update(config.resolve(kwarg_overrides))
-    timesteps = _count(loop["n_timesteps"] if timesteps is None else timesteps, "timesteps")
-    n_envs = _count(loop["n_envs"] if n_envs is None else n_envs, "n_envs")
-    eval_freq = _count(loop.get("eval_freq", max(timesteps // 10, n_envs)), "eval_freq")
-    plan = Plan(
-        env_id=env_id,
-        algo=algo,
-        timesteps=timesteps,
-        n_envs=n_envs,
-        seed=_count(seed, "seed", 0, MAX_SEED),
-        eval_seed=_count(eval_seed, "eval_seed", 0, MAX_SEED),
-        eval_freq=eval_freq,
-        eval_episodes=_count(loop.get("eval_episodes", 100), "eval_episodes"),
-        checkpoint_every=_count(
-            eval_freq if checkpoint_every is None else checkpoint_every, "checkpoint_every"
-        ),
-        env_kwargs=dict(loop["env_kwargs"]),
-        overrides=overrides,
-        loop=loop,
-        kwargs=kwargs,
-    )
-    if "env_kwargs" in loop_overrides:  # the user's: try them on a one-env instance
-        try:
-            make_vec(env_id, 1, **plan.env_kwargs).close()
-        except (TypeError, ValueError) as error:
-            raise UsageError(f"env_kwargs: {env_id} rejects {plan.env_kwargs}: {error}") from None
-    return plan
-
-
-def plan_of_record(record: dict) -> Plan:
-    """The plan stored in a run's ``run.json`` (checked again)."""
-    try:
-        plan = Plan(
-            env_id=record["env_id"],
-            algo=record["algo"],
-            timesteps=_count(record["timesteps"], "timesteps"),
-            n_envs=_count(record["n_envs"], "n_envs"),
-            seed=_count(record["seed"], "seed", 0, MAX_SEED),
-            eval_seed=_count(record["eval_seed"], "eval_seed", 0, MAX_SEED),
-            eval_freq=_count(record["eval_freq"], "eval_freq"),
-            eval_episodes=_count(record["eval_episodes"], "eval_episodes"),
-            checkpoint_every=_count(record["checkpoint_every"], "checkpoint_every"),
-            env_kwargs=dict(record["env_kwargs"]),
-            overrides=dict(record.get("overrides", {})),
-            loop=dict(record["loop"]),
-            kwargs={},  # the checkpoint holds the algorithm's own settings
-        )
-    except (KeyError, TypeError, UsageError) as error:
-        raise UsageError(f"run.json: missing or bad setting ({error}); cannot resume") from None
-    if plan.algo not in config.ALGOS:
-        raise UsageError(f"run.json: algo must be one of {config.ALGOS}, got {plan.algo!r}")
-    return plan
-
-
 def default_out(env_id: str, algo: str) -> Path:
     name = env_id.split("/")[-1].lower()
     stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -256,7 +148,7 @@ def train(
     plan = make_plan(env_id, algo, timesteps, seed, n_envs, overrides, eval_seed, checkpoint_every)
     env, adapter, timed = _make_env(plan)
     env.seed(plan.seed)
-    cls = config.algo_class(plan.algo)
+    cls = algo_class(plan.algo)
     try:
         model = cls(env=env, seed=plan.seed, device="cpu", verbose=0, **plan.kwargs)
     except (TypeError, ValueError, AssertionError) as error:
@@ -495,7 +387,14 @@ class _Session:
                 sim_seconds=self.timed.seconds,
             ).as_dict()
         result = RunResult(
-            out, plan.env_id, plan.algo, self.rows, self.throughput, self.analytic, status, steps
+            out,
+            plan.env_id,
+            plan.algo,
+            self.rows,
+            self.throughput,
+            self.analytic or {},
+            status,
+            steps,
         )
         self._write_tables(result)
         if status == "finished":
@@ -518,7 +417,7 @@ class _Session:
         lines += [",".join(str(r[k]) for k in header) for r in result.evaluations]
         write_text(self.out / "evaluations.csv", "\n".join(lines) + "\n")
         title = f"{result.algo.upper()} on {result.env_id}"
-        learning_curve(result.evaluations, self.analytic, self.out / "learning_curve.png", title)
+        learning_curve(result.evaluations, result.analytic, self.out / "learning_curve.png", title)
 
     def write_record(self, status: str) -> None:
         plan = self.plan
@@ -633,160 +532,14 @@ def _callback(session: _Session):
     return RunCallback()
 
 
-# --- the command line ---------------------------------------------------------------------------
-
-
-class StopOnSignal:
-    """While active, the first SIGINT (Ctrl-C) or SIGTERM makes ``stop()`` true, so the training
-    saves a checkpoint and returns; a second one exits at once with status 130. Every file is
-    written atomically, so exiting there leaves each one whole (old or new)."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self):
-        self.requested = False
-        self._previous: dict = {}
-
-    def __call__(self) -> bool:
-        return self.requested
-
-    def __enter__(self) -> StopOnSignal:
-        for sig in self.SIGNALS:
-            self._previous[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-
-    def _handle(self, signum, frame) -> None:
-        # os.write, not print: the handler may run while the main thread is inside a print.
-        if self.requested:
-            os.write(2, b"\nsecond interrupt: exiting now\n")
-            os._exit(cli.EXIT_INTERRUPTED)
-        self.requested = True
-        name = signal.Signals(signum).name
-        os.write(
-            2,
-            f"\n{name}: stopping at the next step and saving a checkpoint "
-            "(Ctrl-C again to quit at once)\n".encode(),
-        )
-
-
-def parse_overrides(items: list[str]) -> dict:
-    """``["n_steps=128", "policy_kwargs={net_arch: [8]}"]`` → a dict of YAML values."""
-    import yaml
-
-    overrides = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise UsageError(f"--set: expected KEY=VALUE, got {item!r}")
-        try:
-            overrides[key.strip()] = yaml.safe_load(value)
-        except yaml.YAMLError as error:
-            problem = getattr(error, "problem", None) or "invalid YAML"
-            raise UsageError(f"--set {key}: {problem} in {value!r}") from None
-    return overrides
-
-
-TRAINING_FLAGS = ("env", "algo", "timesteps", "seed", "n_envs", "out", "set", "checkpoint_every")
-
-
-def add_training_arguments(parser: cli.Parser) -> None:
-    """The arguments ``agents.train`` and the main job share (defaults: None = not given)."""
-    parser.add_argument("--env", type=cli.env_id, help=f"Gymnasium id (default {DEFAULT_ENV})")
-    parser.add_argument("--algo", choices=config.ALGOS, help="default ppo")
-    parser.add_argument("--timesteps", type=cli.positive_int, help="default: the config file's")
-    parser.add_argument("--seed", type=cli.nonnegative_int, help="default 0")
-    parser.add_argument("--n-envs", type=cli.positive_int, help="default: the config file's")
-    parser.add_argument("--out", help="new run folder (default: a fresh one in runs/)")
-    parser.add_argument(
-        "--set",
-        nargs="+",
-        metavar="KEY=YAML",
-        help="override hyperparameters, e.g. --set n_steps=128 learning_rate=lin_3e-4",
-    )
-    parser.add_argument(
-        "--checkpoint-every",
-        type=cli.positive_int,
-        metavar="STEPS",
-        help="env steps between checkpoints (default: at each evaluation)",
-    )
-    existing = parser.add_mutually_exclusive_group()
-    existing.add_argument(
-        "--overwrite", action="store_true", help="replace the run already in --out"
-    )
-    existing.add_argument(
-        "--resume",
-        metavar="RUN_DIR",
-        help="continue an interrupted run from its last checkpoint, with its settings",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def check_training_arguments(args) -> None:
-    """Every check :func:`train` or :func:`resume` will make, done now (UsageError)."""
-    if args.resume is not None:
-        given = [f"--{f.replace('_', '-')}" for f in TRAINING_FLAGS if getattr(args, f) is not None]
-        if given:
-            raise UsageError(
-                f"--resume continues RUN_DIR with the settings in its run.json; drop {given}"
-            )
-        run_folder.read_resumable(args.resume)
-        return
-    args.overrides = parse_overrides(args.set or [])
-    if args.out is not None:
-        run_folder.check_new(Path(args.out), args.overwrite)
-    make_plan(
-        args.env or DEFAULT_ENV,
-        args.algo or "ppo",
-        args.timesteps,
-        0 if args.seed is None else args.seed,
-        args.n_envs,
-        args.overrides,
-        checkpoint_every=args.checkpoint_every,
-    )
-
-
-def run_training(args, stop: Callable[[], bool]) -> RunResult:
-    if args.resume is not None:
-        return resume(args.resume, progress=not args.no_progress, stop=stop)
-    return train(
-        args.env or DEFAULT_ENV,
-        args.algo or "ppo",
-        args.timesteps,
-        0 if args.seed is None else args.seed,
-        args.n_envs,
-        args.out,
-        args.overrides,
-        progress=not args.no_progress,
-        checkpoint_every=args.checkpoint_every,
-        overwrite=args.overwrite,
-        stop=stop,
-    )
-
-
-PROG = "python -m agents.train"
-EXIT_CODES = "exit status: 0 done, 2 a mistake in the arguments (nothing done), 130 interrupted"
-
-
 def main(argv=None) -> int:
-    parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0], epilog=EXIT_CODES)
-    add_training_arguments(parser)
-    args = parser.parse_args(argv)
-    check_training_arguments(args)
-    with StopOnSignal() as stop:
-        result = run_training(args, stop)
-    if result.status == "interrupted":
-        print(
-            f"{PROG}: interrupted at {result.steps_done:,d} steps; "
-            f"resume with --resume {result.out}",
-            file=sys.stderr,
-        )
-        return cli.EXIT_INTERRUPTED
-    return 0
+    """``python -m agents.train`` (see :mod:`agents.train_cli`)."""
+    from .train_cli import main as cli_main
+
+    return cli_main(argv)
 
 
 if __name__ == "__main__":
+    from .train_cli import PROG
+
     sys.exit(cli.run(main, PROG))

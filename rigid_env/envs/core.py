@@ -41,7 +41,7 @@ from .validation import action_batch, choice, positive_int
 
 def _is_seed(value) -> bool:
     """A seed Gymnasium's ``seeding.np_random`` accepts: an int >= 0 (not a bool)."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= 0)
 
 
 def step_body_torque(scene, state, rot, torque, frame_skip: int, after=None):

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from agents import evaluate, main_job, run_folder
-from agents import train as train_cli
+from agents import evaluate, main_job, run_folder, train_cli
+from agents.train import train
 from rigid_env import cli
 from rigid_env.bench import __main__ as bench_cli
 from rigid_env.bench import env_speed, landing_feasibility
@@ -261,9 +261,9 @@ def test_run_folder_policy_without_the_command_line(tmp_path):
     run_folder.check_new(tmp_path, overwrite=True)
     run_folder.check_new(tmp_path / "fresh", overwrite=False)
     with pytest.raises(ValueError, match="timesteps"):
-        train_cli.train(ID, timesteps=0, out=tmp_path / "x")
+        train(ID, timesteps=0, out=tmp_path / "x")
     with pytest.raises(ValueError, match="seed"):
-        train_cli.train(ID, seed=-1, out=tmp_path / "x")
+        train(ID, seed=-1, out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
 
 
