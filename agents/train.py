@@ -186,10 +186,13 @@ def resume(
     buffer = out / run_folder.REPLAY_BUFFER
     if hasattr(model, "replay_buffer") and buffer.is_file():
         model.load_replay_buffer(buffer)
-    model.set_random_seed(plan.seed + steps)  # also seeds the env: new episodes, new streams
+    # Also seeds the env: new episodes and streams (numpy's legacy seeds stop at 2**32).
+    model.set_random_seed((plan.seed + steps) % 2**32)
     checkpoint = record.get("checkpoint") or {}
     monitor = out / "monitor.csv"
-    if checkpoint.get("steps") == steps and monitor.is_file():
+    if checkpoint.get("steps") != steps:  # run.json was not rewritten after this checkpoint
+        checkpoint = {}
+    elif monitor.is_file():
         # Episodes logged after the checkpoint are run again from it: drop their lines.
         os.truncate(monitor, min(checkpoint["monitor_bytes"], monitor.stat().st_size))
     rows = [r for r in record.get("evaluations", []) if r["env_steps"] <= steps]
@@ -208,6 +211,7 @@ def resume(
         best=-math.inf if best is None else float(best),
         analytic=record.get("analytic"),
         resumed_at=[*record.get("resumed_at", []), steps],
+        checkpoint=checkpoint or None,
     )
     return session.run(progress)
 
@@ -245,6 +249,7 @@ class _Session:
         best: float = -math.inf,
         analytic: dict | None = None,
         resumed_at: list[int] | None = None,
+        checkpoint: dict | None = None,
     ):
         self.plan, self.out, self.env, self.model = plan, out, env, model
         self.adapter, self.timed = adapter, timed
@@ -256,7 +261,7 @@ class _Session:
         self.analytic = analytic
         self.resumed_at = list(resumed_at or [])
         self.start_steps = int(model.num_timesteps)
-        self.checkpoint_info: dict | None = None
+        self.checkpoint_info = checkpoint  # the last one: where a resume would start
         self.throughput: dict = {}
         self.eval_seconds = 0.0
         self.created = time.strftime("%Y-%m-%dT%H:%M:%S")

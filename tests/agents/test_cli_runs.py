@@ -102,11 +102,18 @@ def test_crash_keeps_the_last_checkpoint_and_resume_finishes_the_run(tmp_path):
     assert monitor.stat().st_size > checkpoint["monitor_bytes"]  # episodes logged after it
     kept = monitor.read_bytes()[: checkpoint["monitor_bytes"]]
 
+    # A resume that crashes again before its first checkpoint still points at the last one.
+    crash.calls, crash_step = 0, 20
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        resume(out, progress=False, stop=crash)
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "failed" and record["checkpoint"] == checkpoint
+
     resumed_at = time.time()
     result = resume(out, progress=False)
     assert result.status == "finished" and result.steps_done >= 1000
     record = json.loads((out / "run.json").read_text())
-    assert record["status"] == "finished" and record["resumed_at"] == [384]
+    assert record["status"] == "finished" and record["resumed_at"] == [384, 384]
     steps = [row["env_steps"] for row in record["evaluations"]]
     assert steps == sorted(set(steps)) and steps[-1] == result.steps_done
     # The log continues from the checkpoint: the episodes logged after it are gone, not doubled.
