@@ -344,7 +344,8 @@ class _Session:
             f"seed {plan.seed}"
         )
         self.write_record("running")
-        if self.analytic is None:
+        stopped = self.stop()  # asked before the first step (polled once here, then per step)
+        if self.analytic is None and not stopped:  # the reference level of the curves
             self.analytic = run_episodes(
                 plan.env_id,
                 lambda e: make_policy("analytic", plan.env_id, e),
@@ -353,14 +354,15 @@ class _Session:
                 plan.env_kwargs,
                 policy_needs_env=True,
             ).summary()
-        log(
-            "analytic controller on the evaluation episodes: return "
-            f"{self.analytic['mean_return']:.2f}, success {self.analytic['success_rate']:.1%}"
-        )
+        if self.analytic is not None:
+            log(
+                "analytic controller on the evaluation episodes: return "
+                f"{self.analytic['mean_return']:.2f}, success {self.analytic['success_rate']:.1%}"
+            )
         callback = _callback(self)
         start, cpu_start = time.perf_counter(), time.process_time()
         try:
-            if not self.stop():
+            if not stopped:
                 model.learn(
                     total_timesteps=plan.timesteps - self.start_steps,
                     callback=callback,

@@ -7,10 +7,11 @@ SIGINT or SIGTERM asks the training to stop at its next step, which saves a chec
 
 from __future__ import annotations
 
+import argparse
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from rigid_env import cli
@@ -110,7 +111,7 @@ def add_training_arguments(parser: cli.Parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def check_training_arguments(args) -> None:
+def check_training_arguments(args: argparse.Namespace) -> None:
     """Every check :func:`train` or :func:`resume` will make, done now (UsageError)."""
     if args.resume is not None:
         given = [f"--{f.replace('_', '-')}" for f in TRAINING_FLAGS if getattr(args, f) is not None]
@@ -134,7 +135,7 @@ def check_training_arguments(args) -> None:
     )
 
 
-def run_training(args, stop: Callable[[], bool]) -> RunResult:
+def run_training(args: argparse.Namespace, stop: Callable[[], bool]) -> RunResult:
     if args.resume is not None:
         return resume(args.resume, progress=not args.no_progress, stop=stop)
     return train(
@@ -156,7 +157,7 @@ PROG = "python -m agents.train"
 EXIT_CODES = "exit status: 0 done, 2 a mistake in the arguments (nothing done), 130 interrupted"
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0], epilog=EXIT_CODES)
     add_training_arguments(parser)
     args = parser.parse_args(argv)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from agents import evaluate, run_folder
+from agents import evaluate, run_folder, train_cli
 from agents.train import resume, train
 from rigid_env import cli
 from rigid_env.cli import UsageError
@@ -109,13 +109,13 @@ def test_crash_keeps_the_last_checkpoint_and_resume_finishes_the_run(tmp_path):
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "failed" and record["checkpoint"] == checkpoint
 
-    resumed_at = time.time()
-    result = resume(out, progress=False)
-    assert result.status == "finished" and result.steps_done >= 1000
+    resumed_at = time.time()  # now the command line: its settings come from run.json
+    assert cli.run(train_cli.main, train_cli.PROG, ["--resume", str(out), "--no-progress"]) == 0
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "finished" and record["resumed_at"] == [384, 384]
+    assert record["steps_done"] >= 1000 and record["n_envs"] == 2
     steps = [row["env_steps"] for row in record["evaluations"]]
-    assert steps == sorted(set(steps)) and steps[-1] == result.steps_done
+    assert steps == sorted(set(steps)) and steps[-1] == record["steps_done"]
     # The log continues from the checkpoint: the episodes logged after it are gone, not doubled.
     assert monitor.read_bytes().startswith(kept)
     t_start, rows = monitor_rows(monitor)
@@ -206,7 +206,8 @@ def test_sigterm_then_ctrl_c_exits_at_once_and_leaves_whole_files(tmp_path):
     time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=60) == 130
-    assert "Traceback" not in (tmp_path / "stderr.txt").read_text()
+    stderr = (tmp_path / "stderr.txt").read_text()
+    assert "Traceback" not in stderr and "second interrupt: exiting now" in stderr
     # Whatever the second signal cut short, every file in place is whole.
     record = json.loads((tmp_path / "run" / "run.json").read_text())
     assert record["status"] in ("running", "interrupted")
