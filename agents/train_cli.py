@@ -54,7 +54,7 @@ class StopOnSignal:
         name = signal.Signals(signum).name
         os.write(
             2,
-            f"\n{name}: stopping at the next step and saving a checkpoint "
+            f"\n{name}: stopping at the next env step and saving a checkpoint "
             "(Ctrl-C again to quit at once)\n".encode(),
         )
 

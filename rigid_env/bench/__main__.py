@@ -39,10 +39,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("reports"), help="output directory")
     parser.add_argument("--verbose", "-v", action="store_true", help="progress on stderr")
     args = parser.parse_args(argv)
-    cli.writable_dir(args.out, "--out")
+    commands = COMMANDS if args.command == "all" else (args.command,)
+    for command in commands:  # every output checked before the first measurement
+        for suffix in (".json", ".png"):
+            cli.writable_file(args.out / (command + suffix), "--out")
     preset = args.preset or ("quick" if args.quick else "full")
     progress = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
-    for command in COMMANDS if args.command == "all" else (args.command,):
+    for command in commands:
         result, text = run_command(command, preset, args.out, progress)
         print(f"## {command} ({preset}, {result['bench_wall_s']:.0f} s)\n\n{text}\n")
         print(f"wrote {args.out / (command + '.json')} and {args.out / (command + '.png')}\n")

@@ -65,6 +65,7 @@ def files(tmp_path, monkeypatch):
     (tmp_path / "done").mkdir()
     record = {"env_id": ID, "algo": "ppo", "status": "finished", "steps_done": 64}
     (tmp_path / "done" / "run.json").write_text(json.dumps(record))
+    (tmp_path / "busy" / "speed.png").mkdir(parents=True)  # where a bench writes a file
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "run.json").write_text('{"env_id": ')
     (tmp_path / "broken" / "model.zip").write_bytes(b"")
@@ -195,6 +196,7 @@ def test_main_job_mistakes_exit_2_before_any_work(files, capsys, argv, expected)
 BENCH_CASES = [
     ("bench", ["accuracy", "--preset", "tiny", "--out", "file.txt"], "file.txt is a file"),
     ("bench", ["accuracy", "--preset", "tiny", "--out", "file.txt/sub"], "cannot write"),
+    ("bench", ["all", "--preset", "tiny", "--out", "busy"], "speed.png is a directory"),
     ("bench", ["nothing"], "invalid choice"),
     ("bench", ["speed", "--preset", "huge"], "--preset"),
     ("env_speed", [ID, "--seconds", "-1"], "--seconds"),
