@@ -1,5 +1,9 @@
 """``python -m agents``: the main job (see :mod:`agents.main_job`)."""
 
-from .main_job import main
+import sys
 
-main()
+from rigid_env import cli
+
+from .main_job import PROG, main
+
+sys.exit(cli.run(main, PROG))

@@ -1,46 +1,95 @@
 """Evaluate a policy on seeded episodes.
 
-    python -m agents.evaluate --env RigidEnv/Reorient-v0 --policy {random,zero,analytic,PATH}
+    python -m agents.evaluate [--env ID] --policy {random,zero,analytic,PATH}
                               [--episodes K --seed S --json --gif PATH]
 
 Episode ``i`` starts like a single env reset with seed ``S + i``; all ``K`` run at once in one
 native vector env. Prints a table (mean ± std of the return, success rate, mean episode length,
 final angle error / spin or landing outcome), or with ``--json`` one JSON object with
 ``episodes``, ``mean_return``, ``std_return``, ``success_rate`` (a fraction) and the rest.
-``--gif`` writes a clip of episode 0. A model's env settings are read from the ``run.json``
-that ``agents.train`` wrote next to it.
+``--gif`` writes a clip of episode 0 (atomically; the path is checked before evaluating).
+
+A model (``.zip``) runs only on the env it was trained on: the env id and env settings come from
+the ``run.json`` that ``agents.train`` wrote next to it (``--env`` may be left out; a different
+one is refused). A model without ``run.json`` runs on ``--env`` only if its observation and
+action spaces fit. A mistake in the arguments exits with status 2 and one line on stderr.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from .policies import BUILTIN, make_policy, run_info
-from .rollout import run_episodes
+from rigid_env import cli
+from rigid_env.cli import UsageError
+from rigid_env.files import atomic_open
 
+from . import run_folder
+from .policies import BUILTIN, make_policy
+from .rollout import make_vec, run_episodes
+
+DEFAULT_ENV = "RigidEnv/Reorient-v0"
 DEFAULT_SEED = 1000  # the evaluation seeds agents.train uses: no training stream starts there
 DEFAULT_EPISODES = 200
 
 
-def env_kwargs_for(policy: str) -> dict:
-    return {} if policy in BUILTIN else dict(run_info(policy).get("env_kwargs", {}))
+def trained_env(policy: str) -> str | None:
+    """The env id in the ``run.json`` next to model ``policy`` (None for built-in policies or
+    a model without one)."""
+    if policy in BUILTIN or not (Path(policy).parent / run_folder.RUN_JSON).is_file():
+        return None
+    return run_folder.read(Path(policy).parent)["env_id"]
+
+
+def load_policy(env_id: str, policy: str, seed: int = DEFAULT_SEED):
+    """``(factory, env_kwargs)``: ``factory(env)`` gives the batched policy for a vector env of
+    ``env_id`` built with ``env_kwargs``. A model is loaded once, and only for its own env
+    (:class:`UsageError` otherwise)."""
+    if policy in BUILTIN:
+        return (lambda env: make_policy(policy, env_id, env, seed)), {}
+    path = Path(policy)
+    if path.suffix != ".zip" or not path.is_file():
+        raise UsageError(
+            f"--policy: expected one of {BUILTIN} or an existing .zip file, got {policy!r}"
+        )
+    info = run_folder.read(path.parent) if (path.parent / run_folder.RUN_JSON).is_file() else {}
+    trained_on = info.get("env_id")
+    if trained_on is not None and trained_on != env_id:
+        raise UsageError(
+            f"--policy: {path} was trained on {trained_on} (its run.json), not {env_id}; "
+            f"use --env {trained_on} or leave --env out"
+        )
+    model, _ = run_folder.load_model(path, "--policy")
+    env_kwargs = dict(info.get("env_kwargs", {}))
+    if trained_on is None:
+        _check_spaces(model, path, env_id)
+    return (lambda env: lambda obs: model.predict(obs, deterministic=True)[0]), env_kwargs
+
+
+def _check_spaces(model, path: Path, env_id: str) -> None:
+    """Without run.json the env is unknown: at least the spaces must be the model's."""
+    env = make_vec(env_id, 1)
+    obs, act = env.single_observation_space, env.single_action_space
+    env.close()
+    if model.observation_space.shape != obs.shape or model.action_space.shape != act.shape:
+        raise UsageError(
+            f"--policy: {path} takes observations of shape {model.observation_space.shape} and "
+            f"gives actions of shape {model.action_space.shape}; {env_id} has {obs.shape} and "
+            f"{act.shape}: the model was trained on another env"
+        )
+    print(
+        f"note: no run.json next to {path}; its spaces fit {env_id}, so it runs there",
+        file=sys.stderr,
+    )
 
 
 def evaluate(env_id: str, policy: str, episodes: int = DEFAULT_EPISODES, seed: int = DEFAULT_SEED):
     """Summary dict of ``policy`` on ``episodes`` seeded episodes of ``env_id``."""
-    kwargs = env_kwargs_for(policy)
-    result = run_episodes(
-        env_id,
-        lambda e: make_policy(policy, env_id, e, seed),
-        episodes,
-        seed,
-        kwargs,
-        policy_needs_env=True,
-    )
+    factory, kwargs = load_policy(env_id, policy, seed)
+    result = run_episodes(env_id, factory, episodes, seed, kwargs, policy_needs_env=True)
     return {"env": env_id, "policy": policy, "seed": seed, **result.summary()}
 
 
@@ -49,8 +98,9 @@ def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SE
     import gymnasium as gym
     from PIL import Image
 
-    env = gym.make(env_id, render_mode="rgb_array", **env_kwargs_for(policy))
-    act = make_policy(policy, env_id, env, seed)
+    factory, kwargs = load_policy(env_id, policy, seed)
+    env = gym.make(env_id, render_mode="rgb_array", **kwargs)
+    act = factory(env)
     obs, _ = env.reset(seed=seed)
     frames = [env.render()]
     done = False
@@ -65,7 +115,10 @@ def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SE
     # Pillow's fast octree palette: ~5x quicker than imageio's default GIF quantiser here.
     images = [Image.fromarray(f).quantize(128, method=Image.Quantize.FASTOCTREE) for f in frames]
     duration_ms = round(1000 / env.metadata["render_fps"])
-    images[0].save(path, save_all=True, append_images=images[1:], duration=duration_ms, loop=0)
+    with atomic_open(path) as f:
+        images[0].save(
+            f, format="GIF", save_all=True, append_images=images[1:], duration=duration_ms, loop=0
+        )
     return path
 
 
@@ -101,29 +154,38 @@ def print_table(rows: list[dict], title: str | None = None) -> None:
     Console(width=120).print(table)
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(
-        prog="python -m agents.evaluate", description=__doc__.split("\n")[0]
+PROG = "python -m agents.evaluate"
+
+
+def main(argv=None) -> int:
+    parser = cli.Parser(
+        prog=PROG,
+        description=__doc__.split("\n")[0],
+        epilog="exit status: 0 done, 2 a mistake in the arguments (nothing done), 130 interrupted",
     )
-    parser.add_argument("--env", default="RigidEnv/Reorient-v0")
+    parser.add_argument(
+        "--env", type=cli.env_id, help=f"default: the model's (run.json), else {DEFAULT_ENV}"
+    )
     parser.add_argument("--policy", default="analytic", help="random, zero, analytic or a .zip")
-    parser.add_argument("--episodes", type=int, default=DEFAULT_EPISODES)
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    parser.add_argument("--episodes", type=cli.positive_int, default=DEFAULT_EPISODES)
+    parser.add_argument("--seed", type=cli.nonnegative_int, default=DEFAULT_SEED)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead")
-    parser.add_argument("--gif", default=None, help="write a clip of episode 0 here")
+    parser.add_argument("--gif", help="write a clip of episode 0 to this .gif file")
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error("--episodes must be at least 1")
-    summary = evaluate(args.env, args.policy, args.episodes, args.seed)
+    env_id = args.env or trained_env(args.policy) or DEFAULT_ENV
     if args.gif:
-        summary["gif"] = str(write_gif(args.env, args.policy, args.gif, args.seed))
+        cli.writable_file(args.gif, "--gif", (".gif",))
+    summary = evaluate(env_id, args.policy, args.episodes, args.seed)
     if args.json:
+        if args.gif:
+            summary["gif"] = str(write_gif(env_id, args.policy, args.gif, args.seed))
         print(json.dumps(summary))
     else:
-        print_table([summary], f"{args.env}: {args.episodes} episodes from seed {args.seed}")
+        print_table([summary], f"{env_id}: {args.episodes} episodes from seed {args.seed}")
         if args.gif:
-            print(f"clip: {summary['gif']}")
+            print(f"clip: {write_gif(env_id, args.policy, args.gif, args.seed)}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(cli.run(main, PROG))

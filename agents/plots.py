@@ -9,6 +9,8 @@ import matplotlib
 matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 
+from rigid_env.files import atomic_open  # noqa: E402
+
 
 def learning_curve(rows: list[dict], analytic: dict, path: Path, title: str) -> Path:
     """Two panels sharing the x axis (env steps): mean return ± std and success rate of the
@@ -33,6 +35,9 @@ def learning_curve(rows: list[dict], analytic: dict, path: Path, title: str) -> 
     bottom.legend(loc="lower right")
     n = rows[-1]["episodes"] if rows else 0
     top.set_title(f"{title}: evaluation on {n} seeded episodes")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_open(path) as f:
+            fig.savefig(f, format="png", dpi=110)
+    finally:
+        plt.close(fig)
     return path

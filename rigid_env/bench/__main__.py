@@ -1,24 +1,27 @@
 """``python -m rigid_env.bench {accuracy,stability,speed,all} [--quick] [--out DIR]``.
 
-Each command prints a markdown table and writes ``DIR/<command>.json`` and ``DIR/<command>.png``.
-The default is the full run (5–8 minutes per command); ``--quick`` takes about a minute per
-command; ``--preset tiny`` (seconds, used by the tests) exercises every code path.
+Each command prints a markdown table and writes ``DIR/<command>.json`` and ``DIR/<command>.png``
+(atomically, replacing the previous ones). The default is the full run (5–8 minutes per command);
+``--quick`` takes about a minute per command; ``--preset tiny`` (seconds, used by the tests)
+exercises every code path. ``--out`` is checked before measuring; a mistake in the arguments
+exits with status 2 and one line on stderr.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 import time
 from pathlib import Path
 
+from .. import cli
 from . import report
 
 COMMANDS = ("accuracy", "stability", "speed")
+PROG = "python -m rigid_env.bench"
 
 
-def run_command(command: str, preset: str, out: Path, progress=None) -> dict:
+def run_command(command: str, preset: str, out: Path, progress=None) -> tuple[dict, str]:
     module = importlib.import_module(f"rigid_env.bench.{command}")
     start = time.perf_counter()
     result = module.measure(preset, progress=progress)
@@ -29,18 +32,20 @@ def run_command(command: str, preset: str, out: Path, progress=None) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m rigid_env.bench", description=__doc__.split("\n")[0]
-    )
+    parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument("command", choices=(*COMMANDS, "all"))
     parser.add_argument("--quick", action="store_true", help="each command in under a minute")
     parser.add_argument("--preset", choices=("full", "quick", "tiny"), help="overrides --quick")
     parser.add_argument("--out", type=Path, default=Path("reports"), help="output directory")
     parser.add_argument("--verbose", "-v", action="store_true", help="progress on stderr")
     args = parser.parse_args(argv)
+    commands = COMMANDS if args.command == "all" else (args.command,)
+    for command in commands:  # every output checked before the first measurement
+        for suffix in (".json", ".png"):
+            cli.writable_file(args.out / (command + suffix), "--out")
     preset = args.preset or ("quick" if args.quick else "full")
     progress = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
-    for command in COMMANDS if args.command == "all" else (args.command,):
+    for command in commands:
         result, text = run_command(command, preset, args.out, progress)
         print(f"## {command} ({preset}, {result['bench_wall_s']:.0f} s)\n\n{text}\n")
         print(f"wrote {args.out / (command + '.json')} and {args.out / (command + '.png')}\n")
@@ -48,4 +53,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(cli.run(main, PROG))

@@ -9,13 +9,17 @@ environment's own overhead (observation, reward, info, validation, resets).
 
 from __future__ import annotations
 
-import argparse
+import sys
 import time
 
 import gymnasium as gym
 import numpy as np
 
 import rigid_env  # noqa: F401  (registers the ids)
+from rigid_env import cli
+
+PROG = "python -m rigid_env.bench.env_speed"
+MIN_SECONDS = 0.01  # long enough for at least one step to be timed
 
 
 def _timed_scene(env) -> list[float]:
@@ -47,13 +51,15 @@ def _run(env, action_space, seconds: float, seed: int) -> tuple[int, float, floa
     return steps, time.perf_counter() - start, physics[0]
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("env_id")
-    parser.add_argument("--num-envs", type=int, default=1024)
-    parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--seed", type=int, default=0)
+def main(argv=None) -> int:
+    parser = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("env_id", type=cli.env_id)
+    parser.add_argument("--num-envs", type=cli.positive_int, default=1024)
+    parser.add_argument("--seconds", type=cli.positive_float, default=10.0)
+    parser.add_argument("--seed", type=cli.nonnegative_int, default=0)
     args = parser.parse_args(argv)
+    if args.seconds < MIN_SECONDS:
+        raise cli.UsageError(f"--seconds must be at least {MIN_SECONDS}, got {args.seconds}")
 
     single = gym.make(args.env_id)
     steps, wall, physics = _run(single, single.action_space, args.seconds, args.seed)
@@ -70,7 +76,8 @@ def main(argv=None) -> None:
         f"({1e3 * wall / steps:.1f} ms/batch step, physics {physics / wall:.0%})  "
         f"= {vec_rate / single_rate:.0f}x the single env"
     )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(cli.run(main, PROG))

@@ -12,15 +12,17 @@ from the observation) about n × d, critically damped per principal axis, and sa
 
 from __future__ import annotations
 
-import argparse
 import ast
+import sys
 
 import gymnasium as gym
 import numpy as np
 
 import rigid_env  # noqa: F401  (registers the ids)
+from rigid_env import cli
 
 ID = "RigidEnv/BoxLanding-v0"
+PROG = "python -m rigid_env.bench.landing_feasibility"
 
 
 def face_pd_action(obs: np.ndarray, task, natural_frequency: float = 10.0) -> np.ndarray:
@@ -70,26 +72,33 @@ POLICIES = {
 }
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=0)
+def main(argv=None) -> int:
+    parser = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=cli.positive_int, default=100)
+    parser.add_argument("--seed", type=cli.nonnegative_int, default=0)
     parser.add_argument("kwargs", nargs="*", help="key=value arguments for make_vec")
     args = parser.parse_args(argv)
     kwargs = {}
     for item in args.kwargs:
-        key, _, value = item.partition("=")
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise cli.UsageError(f"expected key=value arguments for make_vec, got {item!r}")
         try:
             kwargs[key] = ast.literal_eval(value)
         except (ValueError, SyntaxError):
             kwargs[key] = value
+    try:  # the env checks its own arguments: try them once on a one-env instance
+        gym.make_vec(ID, num_envs=1, vectorization_mode="vector_entry_point", **kwargs).close()
+    except (TypeError, ValueError) as error:
+        raise cli.UsageError(f"{ID} rejects {kwargs}: {error}") from None
     for name, policy in POLICIES.items():
         r = first_episodes(policy, args.episodes, args.seed, **kwargs)
         print(
             f"{name:6s}: success {r['success']:5.1%}  mean bounces {r['bounces']:4.2f}  "
             f"mean return {r['return']:7.2f}"
         )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(cli.run(main, PROG))

@@ -14,6 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..files import atomic_open, write_text  # noqa: E402
+
 
 def fmt(value, spec: str = ".3g") -> str:
     if value is None:
@@ -66,13 +68,16 @@ def write_json(path: Path, command: str, preset: str, payload: dict) -> None:
         **payload,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(clean(doc), indent=1, allow_nan=False))
+    write_text(path, json.dumps(clean(doc), indent=1, allow_nan=False))
 
 
 def save(fig, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        with atomic_open(path) as f:
+            fig.savefig(f, format=path.suffix.lstrip(".") or "png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
 
 
 def subplots(n: int, width: float = 4.6, height: float = 3.8):

@@ -39,6 +39,11 @@ from .rendering import Frame, Renderer, View
 from .validation import action_batch, choice, positive_int
 
 
+def _is_seed(value) -> bool:
+    """A seed Gymnasium's ``seeding.np_random`` accepts: an int >= 0 (not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= 0)
+
+
 def step_body_torque(scene, state, rot, torque, frame_skip: int, after=None):
     """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
 
@@ -232,12 +237,14 @@ class TaskVectorEnv(VectorEnv):
             if self._rngs is None:
                 self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
             return
-        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        if _is_seed(seed):
             seeds = [int(seed) + i for i in range(self.num_envs)]
         else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"seed must be an int or {self.num_envs} ints, got {seed!r}")
+            seeds = list(seed) if isinstance(seed, (list, tuple, np.ndarray)) else []
+            if len(seeds) != self.num_envs or not all(_is_seed(s) for s in seeds):
+                raise ValueError(
+                    f"seed must be None, an int >= 0 or {self.num_envs} such ints, got {seed!r}"
+                )
         self._rngs = [seeding.np_random(s)[0] for s in seeds]
         self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
 
@@ -286,11 +293,26 @@ class TaskVectorEnv(VectorEnv):
 
     def set_state(self, index=None, **state):
         """Put sub-envs ``index`` (default all) in a hand-built state; returns obs, info."""
-        index = np.arange(self.num_envs) if index is None else np.atleast_1d(np.asarray(index))
+        index = np.arange(self.num_envs) if index is None else self._index(index)
         self.task.set_state(index, **state)
         self._steps[index] = 0
         self._prev_done[index] = False
         return self.task.observation(), self._info()
+
+    def _index(self, index) -> np.ndarray:
+        arr = np.atleast_1d(np.asarray(index))
+        if (
+            arr.ndim != 1
+            or arr.size == 0
+            or arr.dtype.kind not in "iu"
+            or arr.min() < 0
+            or arr.max() >= self.num_envs
+        ):
+            raise ValueError(
+                f"index must be a sub-env number or a 1-D array of them in [0, {self.num_envs}), "
+                f"got {index!r}"
+            )
+        return arr.astype(np.intp)
 
     # --- rendering ------------------------------------------------------------------------------
 

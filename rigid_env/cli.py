@@ -1,0 +1,135 @@
+"""Command-line plumbing shared by ``agents`` and ``rigid_env.bench``.
+
+A mistake by the user (a bad argument, an unusable output path, a file that is not what it should
+be) raises :class:`UsageError`; :func:`run` turns it into one line on stderr and exit status 2,
+before any work is done. Anything else is a bug in the package and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import tempfile
+import threading
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+EXIT_USAGE = 2  # as argparse
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
+
+
+class UsageError(ValueError):
+    """What the user asked for cannot be done; the message says what is wrong and what is
+    expected. A ``ValueError``, so library callers can treat it like any bad argument."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are :class:`UsageError` (one line, no usage block)."""
+
+    def error(self, message: str):
+        raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+def run(main: Callable[[Sequence[str] | None], int | None], prog: str, argv=None) -> int:
+    """Call ``main(argv)``; return its exit status, 2 after a :class:`UsageError` and 130 after
+    Ctrl-C or SIGTERM (raised as ``KeyboardInterrupt``, so ``finally`` blocks and atomic writes
+    clean up), each reported in one line on stderr."""
+    main_thread = threading.current_thread() is threading.main_thread()  # signals live there
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt) if main_thread else None
+    try:
+        return main(argv) or 0
+    except UsageError as error:
+        print(f"{prog}: error: {error}", file=sys.stderr, flush=True)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr, flush=True)
+        return EXIT_INTERRUPTED
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+# --- argparse types: each failure names the value and what is expected ----------------------------
+
+
+def _int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
+def positive_int(text: str) -> int:
+    value = _int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    value = _int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
+def env_id(text: str) -> str:
+    """A registered Gymnasium id (the ``RigidEnv`` ids are registered by importing rigid_env)."""
+    import gymnasium as gym
+
+    import rigid_env  # noqa: F401  (registers the ids)
+
+    if text not in gym.registry:
+        ours = sorted(i for i in gym.registry if i.startswith("RigidEnv/"))
+        raise argparse.ArgumentTypeError(f"unknown env id {text!r}; expected one of {ours}")
+    return text
+
+
+# --- output paths, checked before the work that fills them ----------------------------------------
+
+
+def writable_dir(path: str | Path, name: str) -> Path:
+    """Create directory ``path`` if needed and check that files can be written in it."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{name}: {path} is a file; expected a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as error:
+        raise UsageError(
+            f"{name}: cannot write in {path} ({error.strerror or error}); "
+            "expected a writable directory"
+        ) from None
+    return path
+
+
+def writable_file(path: str | Path, name: str, suffixes: tuple[str, ...] = ()) -> Path:
+    """Check that file ``path`` (with one of ``suffixes``) can be written; creates its folder."""
+    path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"{name}: {path} is a directory; expected a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise UsageError(f"{name}: {path} should end in {' or '.join(suffixes)}")
+    writable_dir(path.parent, name)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise UsageError(f"{name}: {path} is not writable")
+    return path
