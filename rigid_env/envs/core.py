@@ -34,26 +34,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .kinematics import apply, rotation_matrices
 from .rendering import Frame, Renderer, View
 from .validation import action_batch, choice, positive_int
-
-
-def step_body_torque(scene, state, rot, torque, frame_skip: int, after=None):
-    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
-
-    ``torque`` (N, 3) acts about the body's own axes (reaction wheels, thrusters), so it is
-    rotated into the world at every physics step with that step's starting orientation; ``rot``
-    (N, 3, 3) is R of ``state``, which the caller already has. ``after(state)``, if given, runs
-    after every physics step (e.g. to latch contact sensors between actions). Returns the state.
-    """
-    for k in range(frame_skip):
-        if k:
-            rot = rotation_matrices(state.orientation[:, 0])
-        state = scene.step(state, torque=apply(rot, torque)[:, None, :])
-        if after is not None:
-            after(state)
-    return state
 
 
 class BatchedTask(ABC):
@@ -65,6 +47,7 @@ class BatchedTask(ABC):
     """
 
     num_envs: int
+    observation_structure: dict[str, int]  # part name -> size, in order (Gymnasium v5 style)
     single_observation_space: spaces.Box
     single_action_space: spaces.Box
     render_fps: float
@@ -136,6 +119,7 @@ class TaskEnv(gym.Env):
         self.task = self.task_class(1, **task_kwargs)
         self.observation_space = self.task.single_observation_space
         self.action_space = self.task.single_action_space
+        self.observation_structure = dict(self.task.observation_structure)
         self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
         self._action_shape = (1, *self.action_space.shape)
         self._index = np.zeros(1, dtype=np.intp)
@@ -216,6 +200,7 @@ class TaskVectorEnv(VectorEnv):
         self.task = self.task_class(self.num_envs, **task_kwargs)
         self.single_observation_space = self.task.single_observation_space
         self.single_action_space = self.task.single_action_space
+        self.observation_structure = dict(self.task.observation_structure)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
