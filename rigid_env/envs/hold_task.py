@@ -164,8 +164,7 @@ class HoldTask(BatchedTask):
     """Batched core of a body-torque task with a hold-time goal.
 
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
-    per part; a part's size is that of its bounds, or 1 for scalar bounds unless listed in
-    ``observation_sizes``) and ``task_reward_terms``, and implement :meth:`build_scene`,
+    per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement :meth:`build_scene`,
     :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
     :meth:`_observation_parts`, :meth:`_task_terms`, :meth:`_within`, :meth:`_task_info`,
     :meth:`view` and :meth:`frame`.
@@ -173,7 +172,6 @@ class HoldTask(BatchedTask):
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
     observation_bounds: ClassVar[Mapping[str, Bounds]]
-    observation_sizes: ClassVar[Mapping[str, int]] = {}
     task_reward_terms: ClassVar[tuple[str, ...]]
 
     config: HoldTaskConfig
@@ -200,10 +198,7 @@ class HoldTask(BatchedTask):
         self.render_fps = 1.0 / config.action_period
         self.scene = self.build_scene()
 
-        self.observation_structure = {
-            name: self.observation_sizes.get(name, np.size(low))
-            for name, (low, _) in self.observation_bounds.items()
-        }
+        self.observation_structure = self.structure()
         self._slices = observation_slices(self.observation_structure)
         size = sum(self.observation_structure.values())
         low, high = np.empty(size, np.float32), np.empty(size, np.float32)
@@ -222,6 +217,11 @@ class HoldTask(BatchedTask):
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = {name: np.zeros(n) for name in self.reward_terms}
+
+    @classmethod
+    def structure(cls) -> dict[str, int]:
+        """The observation's named parts, ``name -> size`` in order (``observation_structure``)."""
+        return {name: int(np.size(low)) for name, (low, _) in cls.observation_bounds.items()}
 
     # --- what a task supplies -------------------------------------------------------------------
 
