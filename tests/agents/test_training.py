@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 from stable_baselines3 import PPO, SAC
 
 from agents import config, evaluate, policies
@@ -86,24 +87,24 @@ def test_evaluate_table_json_and_gif_for_builtin_policies(tmp_path, capsys):
         evaluate.evaluate(ID, "no_such_policy", 2)
 
 
-@pytest.mark.parametrize("path", sorted(config.HYPERPARAMS_DIR.glob("*.yml")), ids=lambda p: p.name)
-def test_config_files_load_and_build_models(path):
-    import yaml
+ENV_IDS = ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
 
-    blocks = yaml.safe_load(path.read_text())
-    env_id = {
-        config.config_path(i).name: i for i in ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
-    }[path.name]
-    assert set(blocks) <= set(config.ALGOS) and blocks
-    for algo in blocks:
+
+@pytest.mark.parametrize("algo", config.ALGOS)
+def test_config_files_load_and_build_models(algo):
+    # Every shipped file covers both envs, and every argument is accepted by SB3 on the real
+    # (adapted) env.
+    assert sorted(config.env_ids(algo)) == sorted(ENV_IDS)
+    cls = {"ppo": PPO, "sac": SAC}[algo]
+    for env_id in ENV_IDS:
         loop, kwargs = config.load(env_id, algo)
-        cls = {"ppo": PPO, "sac": SAC}[algo]
         assert set(kwargs) <= set(inspect.signature(cls.__init__).parameters), kwargs
         assert loop["n_timesteps"] > 0 and loop["n_envs"] > 0
-        # Every argument is accepted by SB3 on the real (adapted) env.
+        assert loop["eval_freq"] > 0 and loop["eval_episodes"] > 0
         kwargs = {**kwargs, "buffer_size": 1000} if algo == "sac" else kwargs
         venv = GymVectorToSB3(make_vec(env_id, loop["n_envs"], **loop["env_kwargs"]))
-        cls(env=venv, device="cpu", **kwargs)
+        model = cls(env=venv, device="cpu", **kwargs)
+        assert model.policy_kwargs["net_arch"] == [128, 128]
 
 
 def test_config_errors_name_the_parameter():
@@ -111,5 +112,34 @@ def test_config_errors_name_the_parameter():
         config.load(ID, "dqn")
     with pytest.raises(ValueError, match="env_id"):
         config.load("RigidEnv/NoSuchEnv-v0", "ppo")
-    assert config.config_path("RigidEnv/BoxLanding-v0").name == "box_landing.yml"
+    with pytest.raises(ValueError, match="env_id"):
+        config.load(config.EVALUATION, "ppo")
+    assert config.config_path("sac").name == "sac.yml"
     assert config.linear_schedule(2e-3)(0.25) == pytest.approx(5e-4)
+    # The Zoo's policy_kwargs expression resolves to classes, as the Zoo's own eval does.
+    resolved = config.resolve({"policy_kwargs": "dict(net_arch=[8], activation_fn=nn.ReLU)"})
+    assert resolved["policy_kwargs"] == {"net_arch": [8], "activation_fn": torch.nn.ReLU}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rl_zoo_trains_with_the_shipped_file(env_id, tmp_path, monkeypatch):
+    """``python -m rl_zoo3.train --gym-packages rigid_env --conf-file agents/hyperparams/ppo.yml``
+    on a tiny budget (the Zoo's own --hyperparams overrides): it finds the env, accepts every
+    key of the file and saves a model that loads and acts."""
+    from rl_zoo3.train import train as zoo_train
+
+    argv = [
+        "rl_zoo3.train",
+        *("--algo", "ppo", "--env", env_id, "--gym-packages", "rigid_env"),
+        *("--conf-file", str(config.config_path("ppo")), "-n", "256", "--seed", "0"),
+        *("--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"),
+        *("--eval-freq", "-1", "--log-folder", str(tmp_path), "--device", "cpu"),
+        *("--num-threads", "1"),
+    ]
+    monkeypatch.setattr("sys.argv", argv)
+    zoo_train()
+    (saved,) = tmp_path.glob(f"ppo/*/{env_id.replace('/', '-')}.zip")
+    model = PPO.load(saved, device="cpu")
+    assert model.num_timesteps == 256 and model.policy_kwargs["net_arch"] == [128, 128]
+    obs = make_vec(env_id, 1).reset(seed=0)[0]
+    assert model.predict(obs, deterministic=True)[0].shape == (1, 3)
