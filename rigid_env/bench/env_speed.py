@@ -70,8 +70,10 @@ def run(
     if (steps is None) == (seconds is None):
         raise ValueError("steps: give exactly one of steps and seconds")
     vector = isinstance(env, gym.vector.VectorEnv)
-    n = env.num_envs if vector else 1
+    n = env.num_envs if isinstance(env, gym.vector.VectorEnv) else 1
     space = env.action_space
+    if not isinstance(space, gym.spaces.Box):
+        raise ValueError(f"env must have a Box action space, got {space}")
     rng = np.random.default_rng(seed)
     actions = rng.uniform(space.low, space.high, (ACTION_POOL, *space.shape)).astype(space.dtype)
     env.reset(seed=seed)

@@ -245,7 +245,7 @@ def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
                     "error_kind": "post-bounce velocity",
                     "velocity_error": verr,
                     "momentum_error": lerr,
-                    "error": None if verr is None else max(verr, lerr),
+                    "error": None if verr is None or lerr is None else max(verr, lerr),
                     "diverged": not finite,
                 }
                 records.append({**base, "batch": 1, "wall_s_per_sim_s": wall / t})

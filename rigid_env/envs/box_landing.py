@@ -518,7 +518,7 @@ class BoxLandingTask(HoldTask):
             axis, angle = np.array([1.0, 0.0, 0.0]), (0.0 if cos > 0 else np.pi)
         else:
             axis, angle = axis / sin, math.atan2(sin, cos)
-        align = rotation_matrices(quat_from_axis_angle(axis, angle)[None])[0]
+        align = rotation_matrices(quat_from_axis_angle(axis, np.array(angle))[None])[0]
         position = np.array(
             [*self.state.position[i, 0, :2], abs(normal @ self.body.shape.half_extents)]
         )

@@ -216,7 +216,7 @@ class HoldTask(BatchedTask):
         n = self.num_envs
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
-        self.terms = {name: np.zeros(n) for name in self.reward_terms}
+        self.terms: dict[str, np.ndarray] = {name: np.zeros(n) for name in self.reward_terms}
 
     @classmethod
     def structure(cls) -> dict[str, int]:
