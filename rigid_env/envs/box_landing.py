@@ -30,18 +30,19 @@ rotated into the world at every physics step.
 
 ``Box((25,), float32)``: what the box's own sensors give (altimeter, velocity estimate, IMU,
 gyro, corner touch switches) plus the task. Vectors marked *body* are in body axes, *world* in
-world axes (z up).
+world axes (z up). The parts are named in ``env.unwrapped.observation_structure`` (as in
+Gymnasium's MuJoCo v5 envs; ``rigid_env.envs.split_observation`` slices by name):
 
-| Num   | Observation                                            | Min | Max | Unit             |
-|-------|--------------------------------------------------------|-----|-----|------------------|
-| 0     | height of the centre of mass                           | 0   | 10  | m                |
-| 1     | clearance: height of the lowest corner                 | 0   | 10  | m                |
-| 2–4   | linear velocity (world) / 5 m/s                        | -5  | 5   | (m/s)/(m/s)      |
-| 5–7   | up direction (world +z) in body axes (an IMU's gravity) | -1  | 1   |                  |
-| 8–10  | body angular velocity Ω / ``spin_scale``                | -5  | 5   | (rad/s)/(rad/s)  |
-| 11–13 | target face outward normal in body axes (±e_x, ±e_y, ±e_z) | -1 | 1 |               |
-| 14–21 | corner touch flags (1 when within ``contact_tolerance`` of the ground), corners in the order of ``sim.Box.vertices`` (index 4 i_x + 2 i_y + i_z, i = 0 for −, 1 for +) | 0 | 1 | |
-| 22–24 | previous action                                        | -1  | 1   | ``max_torque``   |
+| Num   | Part                | Observation                                      | Min | Max | Unit            |
+|-------|---------------------|--------------------------------------------------|-----|-----|-----------------|
+| 0     | ``height``          | height of the centre of mass                     | 0   | 10  | m               |
+| 1     | ``clearance``       | height of the lowest corner                      | 0   | 10  | m               |
+| 2–4   | ``linear_velocity`` | linear velocity (world) / 5 m/s                  | -5  | 5   | (m/s)/(m/s)     |
+| 5–7   | ``up``              | world +z in body axes (an IMU's gravity)         | -1  | 1   |                 |
+| 8–10  | ``angular_velocity``| body angular velocity Ω / ``spin_scale``         | -5  | 5   | (rad/s)/(rad/s) |
+| 11–13 | ``target_normal``   | target face outward normal in body axes (±e_x, ±e_y, ±e_z) | -1 | 1 |    |
+| 14–21 | ``corner_contacts`` | corner touch flags (1 when within ``contact_tolerance`` of the ground), corners in the order of ``sim.Box.vertices`` (index 4 i_x + 2 i_y + i_z, i = 0 for −, 1 for +) | 0 | 1 | |
+| 22–24 | ``previous_action`` | previous action                                  | -1  | 1   | ``max_torque``  |
 
 Height and clearance are bounded below by the ground (a resting contact may sink by rounding:
 the clearance is clipped at 0) and clipped at 10 m above. The velocities are clipped: a default
@@ -53,13 +54,15 @@ the box up without limit, which a sensible policy avoids. ``info`` carries the v
 Per step, with θ the angle between the target face's outward normal and world −z (0 when the
 box stands on it), Ω the body angular velocity, a the action:
 
-| Term     | Value                                               | Default weight         |
-|----------|-----------------------------------------------------|------------------------|
-| face     | ``-face_weight · θ / π``                            | ``face_weight=1``      |
-| spin     | ``-spin_weight · |Ω| / spin_scale``                 | ``spin_weight=0.05``   |
-| bounce   | ``-bounce_weight`` at each touchdown after the first | ``bounce_weight=0.5``  |
-| effort   | ``-action_weight · |a|² / 3``                        | ``action_weight=0.01`` |
-| success  | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10``  |
+| Term (``info`` key) | Value                                                | Default weight         |
+|---------------------|------------------------------------------------------|------------------------|
+| ``reward_angle``    | ``-face_weight · θ / π``                             | ``face_weight=1``      |
+| ``reward_bounce``   | ``-bounce_weight`` at each touchdown after the first | ``bounce_weight=0.5``  |
+| ``reward_spin``     | ``-spin_weight · |Ω| / spin_scale``                  | ``spin_weight=0.05``   |
+| ``reward_ctrl``     | ``-action_weight · |a|² / 3``                        | ``action_weight=0.01`` |
+| ``reward_success``  | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10``  |
+
+The reward is their sum; each term is in ``info`` under its key (as in Gymnasium's ``Hopper-v5``).
 
 The face term is linear in θ so its pull does not fade near the goal; the spin term is small
 because turning the box in flight needs spin. A *touchdown* is an action period in which the
@@ -99,7 +102,7 @@ Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, 
 (corners touching, int), ``touchdowns`` (int), ``bounces`` (touchdowns after the first, int),
 ``down_face`` (index into ``FACES`` = ("+x", "-x", "+y", "-y", "+z", "-z") of the face now
 facing the ground, int), ``target_face`` (index, int), ``energy`` (kinetic + gravitational
-m g z, J) and ``is_success`` (``bool``).
+m g z, J), the reward terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
 
 ## Arguments
 
@@ -138,13 +141,16 @@ m g z, J) and ``is_success`` (``bool``).
 Why these defaults: the box is the simulator's landing scene. A fall of 1–2 m takes 0.45–0.64 s
 before the first touchdown; at 1 N m the wheels turn the box by π about its largest axis in
 about 0.6 s (bang-bang, 2 √(π I / τ)), so turning the target face down in flight is feasible from
-most throws but not from all, and braking the initial spin takes part of that time (a saturated
-PD law on the face error succeeds in about 9 episodes of 10, zero torque in 1 of 25). Resting,
+most throws but not from all, and braking the initial spin takes part of that time (the analytic
+controller, ``python -m agents.evaluate --env RigidEnv/BoxLanding-v0 --policy analytic``,
+succeeds in 96 % of the 200 seeded evaluation episodes; zero torque in about 1 of 30). Resting,
 the wheels tip the box over an edge only if τ > m g d, d the horizontal distance from the
 centre of mass to that edge: 0.98 N m off the ±y and ±z faces about their 0.1 m edges, so a bad
 policy can topple a box standing on its target, but 1.96 N m onto the −z face (d = 0.2 m): with
 the default target, a box at rest on a wrong face never reaches the target face.
 
+The arguments other than ``render_mode`` form a :class:`BoxLandingConfig` (a frozen dataclass,
+validated when built); ``make(..., config=BoxLandingConfig(...))`` passes one whole.
 Bad values raise ``ValueError`` naming the argument. The vector env also takes ``num_envs`` and
 ``max_episode_steps``; seeded with ``s`` its sub-env ``i`` uses seed ``s + i`` and equals a single
 env seeded ``s + i`` step for step (Gymnasium ``NEXT_STEP`` autoreset). ``set_state(position=,

@@ -26,7 +26,9 @@ world at every physics step.
 
 ## Observation Space
 
-``Box((10,), float32)``. The error rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product,
+``Box((10,), float32)``, in named parts (``env.unwrapped.observation_structure``, as in
+Gymnasium's MuJoCo v5 envs; ``rigid_env.envs.split_observation`` slices by name):
+``error_quaternion`` (4), ``angular_velocity`` (3), ``previous_action`` (3). The error rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product,
 quaternions ``(x, y, z, w)``, ``q`` maps body to world) is the rotation from the target body
 frame to the current one, expressed in body axes; its sign is chosen with ``w >= 0`` so it is
 continuous near the goal, where it tends to ``(0, 0, 0, 1)``. For a small error its vector part
@@ -46,19 +48,22 @@ is half the rotation vector that the body must undo, in the body axes the torque
 | 9   | previous action, z                            | -1   | 1    | ``max_torque``    |
 
 Physics does not bound the spin (torque can spin the body up without limit), so its observation
-is clipped to ±5, i.e. five times the fastest initial spin with the default ``spin_scale``; it
+is clipped to ±5 (``OBS_LIMIT``), five times the fastest initial spin with the default
+``spin_scale``; it
 starts within ±1 and a sensible policy keeps it there. ``info["spin"]`` is never clipped.
 
 ## Rewards
 
 Per step, with θ the angle error (rad), Ω the body angular velocity (rad/s), a the action:
 
-| Term        | Value                                      | Default weight      |
-|-------------|--------------------------------------------|---------------------|
-| attitude    | ``-angle_weight · θ / π``                  | ``angle_weight=1``  |
-| spin        | ``-spin_weight · |Ω| / spin_scale``        | ``spin_weight=0.1`` |
-| effort      | ``-action_weight · |a|² / 3``              | ``action_weight=0.01`` |
-| success     | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10`` |
+| Term (``info`` key)  | Value                                      | Default weight      |
+|----------------------|--------------------------------------------|---------------------|
+| ``reward_angle``     | ``-angle_weight · θ / π``                  | ``angle_weight=1``  |
+| ``reward_spin``      | ``-spin_weight · |Ω| / spin_scale``        | ``spin_weight=0.1`` |
+| ``reward_ctrl``      | ``-action_weight · |a|² / 3``              | ``action_weight=0.01`` |
+| ``reward_success``   | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10`` |
+
+The reward is their sum; each term is in ``info`` under its key (as in Gymnasium's ``Hopper-v5``).
 
 The attitude and spin terms are linear (not squared) so their pull does not fade near the goal;
 every term but the bonus is ≤ 0, so with ``terminate_on_success=True`` reaching the goal sooner is
@@ -86,8 +91,8 @@ orientation is uniform on SO(3) per episode, or fixed by ``target_orientation``.
 ## Info
 
 Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, rad/s), ``energy``
-(kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array) and ``is_success``
-(``bool``).
+(kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array), the reward
+terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
 
 ## Arguments
 
@@ -114,9 +119,11 @@ Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, 
 | ``hold_time``         | ``1.0``               | time to stay within both thresholds, s                    |
 | ``terminate_on_success`` | ``True``           | end the episode at success                                |
 | ``angle_weight``, ``spin_weight``, ``action_weight``, ``success_bonus`` | 1, 0.1, 0.01, 10 | reward terms (table above) |
-| ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high (or 1 rad/s) |
+| ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high, at least 1 rad/s |
 | ``render_mode``       | ``None``              | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 
+The arguments other than ``render_mode`` form a :class:`ReorientConfig` (a frozen dataclass,
+validated when built); ``make(..., config=ReorientConfig(...))`` passes one whole.
 Bad values raise ``ValueError`` naming the argument. The vector env also takes ``num_envs`` and
 ``max_episode_steps``; seeded with ``s`` its sub-env ``i`` uses seed ``s + i`` and equals a single
 env seeded ``s + i`` step for step (Gymnasium ``NEXT_STEP`` autoreset). ``set_state(orientation=,
