@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import inspect
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -122,22 +125,21 @@ def test_config_errors_name_the_parameter():
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_rl_zoo_trains_with_the_shipped_file(env_id, tmp_path, monkeypatch):
+def test_rl_zoo_trains_with_the_shipped_file(env_id, tmp_path):
     """``python -m rl_zoo3.train --gym-packages rigid_env --conf-file agents/hyperparams/ppo.yml``
     on a tiny budget (the Zoo's own --hyperparams overrides): it finds the env, accepts every
-    key of the file and saves a model that loads and acts."""
-    from rl_zoo3.train import train as zoo_train
-
-    argv = [
-        "rl_zoo3.train",
-        *("--algo", "ppo", "--env", env_id, "--gym-packages", "rigid_env"),
-        *("--conf-file", str(config.config_path("ppo")), "-n", "256", "--seed", "0"),
+    key of the file and saves a model that loads and acts. In a subprocess, as users run it
+    (importing rl_zoo3 also patches Gymnasium's TimeLimit for the whole process)."""
+    command = [
+        *(sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", env_id),
+        *("--gym-packages", "rigid_env", "--conf-file", str(config.config_path("ppo"))),
+        *("-n", "256", "--seed", "0", "--eval-freq", "-1", "--device", "cpu"),
         *("--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"),
-        *("--eval-freq", "-1", "--log-folder", str(tmp_path), "--device", "cpu"),
-        *("--num-threads", "1"),
+        *("--log-folder", str(tmp_path), "--num-threads", "1"),
     ]
-    monkeypatch.setattr("sys.argv", argv)
-    zoo_train()
+    root = Path(config.__file__).resolve().parents[1]
+    run = subprocess.run(command, cwd=root, timeout=300, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-4000:]
     (saved,) = tmp_path.glob(f"ppo/*/{env_id.replace('/', '-')}.zip")
     model = PPO.load(saved, device="cpu")
     assert model.num_timesteps == 256 and model.policy_kwargs["net_arch"] == [128, 128]
