@@ -33,6 +33,7 @@ from .validation import (
     positive_int,
     positive_scalar,
     positive_vector,
+    quaternions,
     scalar_range,
 )
 
@@ -69,15 +70,6 @@ def step_body_torque(
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product of (N, 3) stacks, elementwise (exact whatever the batch size)."""
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
-def quaternions(value: Any, name: str) -> np.ndarray:
-    """Non-zero quaternions (x, y, z, w), ``(..., 4)``, normalised; ``ValueError`` naming ``name``."""
-    q = finite_array(value, name, (4,))
-    norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    if np.any(norm < 1e-12):
-        raise ValueError(f"{name} must be non-zero quaternions (x, y, z, w), got {value!r}")
-    return q / norm
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

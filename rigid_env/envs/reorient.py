@@ -145,10 +145,10 @@ import numpy as np
 from .. import sim
 from ..sim.rotation import quat_conjugate, quat_rotate
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, quaternions
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
 from .kinematics import apply, apply_transpose, left_matrices, rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
-from .validation import nonnegative_scalar, positive_scalar, unit_interval
+from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
 MAX_EPISODE_STEPS = 200
 

@@ -1,7 +1,7 @@
 """Argument checks shared by the environments: each failure is a ``ValueError`` naming the argument.
 
 Scalar checks come from the simulator (:mod:`rigid_env.sim.validation`); this module adds what
-only environments need: integers, ranges, probabilities, quaternions, choices, and actions.
+only environments need: integers, ranges, quaternions, choices, and actions.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ __all__ = [
     "positive_int",
     "positive_scalar",
     "positive_vector",
-    "quaternion",
+    "quaternions",
     "scalar_range",
     "unit_interval",
 ]
@@ -59,12 +59,12 @@ def positive_vector(value: Any, name: str, size: int = 3) -> np.ndarray:
     return arr
 
 
-def quaternion(value: Any, name: str) -> np.ndarray:
-    """A non-zero (x, y, z, w) quaternion, normalised."""
+def quaternions(value: Any, name: str) -> np.ndarray:
+    """Non-zero quaternions (x, y, z, w), shape ``(..., 4)``, normalised."""
     q = finite_array(value, name, (4,))
-    norm = np.linalg.norm(q)
-    if q.shape != (4,) or norm < 1e-12:
-        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {value!r}")
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.any(norm < 1e-12):
+        raise ValueError(f"{name} must be non-zero quaternions (x, y, z, w), got {value!r}")
     return q / norm
 
 
