@@ -125,29 +125,34 @@ def test_config_errors_name_the_parameter():
     assert resolved["policy_kwargs"] == {"net_arch": [8], "activation_fn": torch.nn.ReLU}
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_rl_zoo_trains_with_the_shipped_file(env_id, tmp_path):
+def test_rl_zoo_trains_both_envs_with_the_shipped_file(tmp_path):
     """``python -m rl_zoo3.train --gym-packages rigid_env --conf-file agents/hyperparams/ppo.yml``
-    on a tiny budget (the Zoo's own --hyperparams overrides): it finds the env, accepts every
-    key of the file and saves a model of the file's policy. In a subprocess, as users run it
-    (importing rl_zoo3 also patches Gymnasium's TimeLimit for the whole process)."""
-    command = [
-        *(sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", env_id),
-        *("--gym-packages", "rigid_env", "--conf-file", str(config.config_path("ppo"))),
-        *("-n", "256", "--seed", "0", "--eval-freq", "-1", "--device", "cpu"),
-        *("--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"),
-        *("--log-folder", str(tmp_path), "--num-threads", "1"),
-    ]
+    on a tiny budget (the Zoo's own --hyperparams overrides): it finds each env, accepts every
+    key of the file and saves a model of the file's policy. In subprocesses, as users run it
+    (importing rl_zoo3 also patches Gymnasium's TimeLimit for the whole process); the two envs
+    train side by side (one per core)."""
     root = Path(config.__file__).resolve().parents[1]
-    run = subprocess.run(command, cwd=root, timeout=300, capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr[-4000:]
-    (saved,) = tmp_path.glob(f"ppo/*/{env_id.replace('/', '-')}.zip")
-    # Read the saved model's record without unpickling it: its schedules are rl_zoo3 objects,
-    # and importing rl_zoo3 would patch this test process too.
-    with zipfile.ZipFile(saved) as archive:
-        data = json.loads(archive.read("data"))
-        assert "policy.pth" in archive.namelist()
-    assert data["num_timesteps"] == 256
-    kwargs = data["policy_kwargs"]
-    assert kwargs["net_arch"] == [128, 128] and kwargs["activation_fn"].endswith("Tanh'>")
+    runs = {}
+    for env_id in ENV_IDS:
+        command = [
+            *(sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", env_id),
+            *("--gym-packages", "rigid_env", "--conf-file", str(config.config_path("ppo"))),
+            *("-n", "256", "--seed", "0", "--eval-freq", "-1", "--device", "cpu"),
+            *("--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"),
+            *("--log-folder", str(tmp_path), "--num-threads", "1"),
+        ]
+        log = tmp_path / f"{env_id.replace('/', '-')}.log"
+        with log.open("w") as out:  # a file, not a pipe: nothing blocks on a full buffer
+            runs[env_id] = (subprocess.Popen(command, cwd=root, stdout=out, stderr=out), log)
+    for env_id, (run, log) in runs.items():
+        assert run.wait(timeout=300) == 0, (env_id, log.read_text()[-4000:])
+        (saved,) = tmp_path.glob(f"ppo/*/{env_id.replace('/', '-')}.zip")
+        # The saved model's record, read without unpickling it: its schedules are rl_zoo3
+        # objects, and importing rl_zoo3 would patch this test process too.
+        with zipfile.ZipFile(saved) as archive:
+            data = json.loads(archive.read("data"))
+            assert "policy.pth" in archive.namelist()
+        assert data["num_timesteps"] == 256
+        kwargs = data["policy_kwargs"]
+        assert kwargs["net_arch"] == [128, 128] and kwargs["activation_fn"].endswith("Tanh'>")
     assert "rl_zoo3" not in sys.modules
