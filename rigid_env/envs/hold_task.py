@@ -156,10 +156,10 @@ class HoldTask(BatchedTask):
     """Batched core of a body-torque task with a hold-time goal.
 
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
-    per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement :meth:`build_scene`,
-    :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
+    per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
+    :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
     :meth:`_observation_parts`, :meth:`_task_terms`, :meth:`_within`, :meth:`_task_info`,
-    :meth:`view` and :meth:`frame`.
+    :meth:`view` and :meth:`frame`; :meth:`set_state` ends with :meth:`_start_episode`.
     """
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig

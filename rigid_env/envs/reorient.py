@@ -28,9 +28,9 @@ world at every physics step.
 
 ``Box((10,), float32)``, in named parts (``env.unwrapped.observation_structure``, as in
 Gymnasium's MuJoCo v5 envs; ``rigid_env.envs.split_observation`` slices by name):
-``error_quaternion`` (4), ``angular_velocity`` (3), ``previous_action`` (3). The error rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product,
-quaternions ``(x, y, z, w)``, ``q`` maps body to world) is the rotation from the target body
-frame to the current one, expressed in body axes; its sign is chosen with ``w >= 0`` so it is
+``error_quaternion`` (4), ``angular_velocity`` (3), ``previous_action`` (3). The error
+rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product, quaternions ``(x, y, z, w)``, ``q`` maps
+body to world) is the rotation from the target body frame to the current one, in body axes; its sign is chosen with ``w >= 0`` so it is
 continuous near the goal, where it tends to ``(0, 0, 0, 1)``. For a small error its vector part
 is half the rotation vector that the body must undo, in the body axes the torques act on.
 
