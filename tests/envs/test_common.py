@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -201,6 +202,13 @@ def test_a_config_object_or_keywords_but_not_both(env_id):
         gym.make(env_id, config={"dt": 0.01})
     with pytest.raises(ValueError, match="frame_skip"):
         CONFIGS[env_id](frame_skip=0)
+    # A config is a value: replace() builds a new one, validated again, the body rebuilt.
+    heavier = dataclasses.replace(config, mass=3.0)
+    assert heavier.rigid_body.mass == 3.0 and config.rigid_body.mass != 3.0
+    with pytest.raises(ValueError, match="dt"):
+        dataclasses.replace(config, dt=-1.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.dt = 0.5
 
 
 @pytest.mark.parametrize("env_id", ENVS)
