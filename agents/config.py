@@ -1,48 +1,55 @@
-"""Per-environment hyperparameters from ``agents/hyperparams/<env>.yml`` (RL Zoo style).
+"""Hyperparameters from ``agents/hyperparams/<algo>.yml``, in the RL Zoo's format.
 
-Each file has one block per algorithm. Training-loop keys (:data:`LOOP_KEYS`) are split off;
-the rest are keyword arguments of the SB3 algorithm, with two conveniences from the Zoo:
-``"lin_<x>"`` for a schedule decaying linearly from ``x`` to 0, and
-``policy_kwargs.activation_fn`` given as the name of a ``torch.nn`` module.
+Each file has one block per env id, so the same file trains with ``agents.train`` and with
+``python -m rl_zoo3.train --algo <algo> --env <id> --gym-packages rigid_env --conf-file <file>``.
+Training-loop keys (:data:`LOOP_KEYS`) are split off (the evaluation schedule comes from the
+file's ``evaluation`` section, which the Zoo does not read); the rest are keyword arguments of
+the SB3 algorithm, resolved as the Zoo does: ``"lin_<x>"`` for a schedule decaying linearly from
+``x`` to 0, and ``policy_kwargs`` given as a Python expression over ``dict`` and ``nn``
+(``torch.nn``).
 """
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 HYPERPARAMS_DIR = Path(__file__).with_name("hyperparams")
 LOOP_KEYS = ("n_timesteps", "n_envs", "env_kwargs", "eval_freq", "eval_episodes")
 ALGOS = ("ppo", "sac")
+EVALUATION = "evaluation"  # the files' section for agents.train's evaluation schedule
 
 
-def config_path(env_id: str) -> Path:
-    """``RigidEnv/BoxLanding-v0`` → ``hyperparams/box_landing.yml``."""
-    name = env_id.split("/")[-1].split("-v")[0]
-    snake = re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower()
-    return HYPERPARAMS_DIR / f"{snake}.yml"
-
-
-def load(env_id: str, algo: str) -> tuple[dict, dict]:
-    """(loop settings, algorithm kwargs) for ``env_id`` and ``algo``, schedules resolved."""
+def config_path(algo: str) -> Path:
+    """``"ppo"`` → ``hyperparams/ppo.yml``."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    path = config_path(env_id)
-    if not path.exists():
-        raise ValueError(f"env_id: no hyperparameter file {path} for {env_id!r}")
+    return HYPERPARAMS_DIR / f"{algo}.yml"
+
+
+def env_ids(algo: str) -> list[str]:
+    """The env ids ``algo``'s file has a block for."""
+    blocks = yaml.safe_load(config_path(algo).read_text())
+    return [k for k in blocks if k != EVALUATION]
+
+
+def load(env_id: str, algo: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(loop settings, algorithm kwargs) for ``env_id`` and ``algo``, schedules resolved."""
+    path = config_path(algo)
     blocks = yaml.safe_load(path.read_text())
-    if algo not in blocks:
-        raise ValueError(f"algo: {path.name} has no {algo!r} block")
-    params = dict(blocks[algo])
+    if env_id == EVALUATION or env_id not in blocks:
+        raise ValueError(f"env_id: {path.name} has no block for {env_id!r}")
+    params = dict(blocks[env_id])
     loop = {k: params.pop(k) for k in LOOP_KEYS if k in params}
+    loop.update(blocks.get(EVALUATION, {}).get(env_id, {}))
     loop.setdefault("env_kwargs", {})
     return loop, resolve(params)
 
 
-def resolve(params: dict) -> dict:
-    """Turn the file's plain values into SB3 arguments (schedules, activation classes)."""
+def resolve(params: dict[str, Any]) -> dict[str, Any]:
+    """Turn the file's plain values into SB3 arguments (schedules, policy keyword arguments)."""
     import torch.nn
 
     out = dict(params)
@@ -50,7 +57,10 @@ def resolve(params: dict) -> dict:
         value = out.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
             out[key] = linear_schedule(float(value[4:]))
-    kwargs = dict(out.get("policy_kwargs") or {})
+    kwargs = out.get("policy_kwargs") or {}
+    if isinstance(kwargs, str):  # the Zoo's form: an expression over dict and nn
+        kwargs = eval(kwargs, {"__builtins__": {}, "dict": dict, "nn": torch.nn})
+    kwargs = dict(kwargs)
     if isinstance(kwargs.get("activation_fn"), str):
         kwargs["activation_fn"] = getattr(torch.nn, kwargs["activation_fn"])
     if kwargs:

@@ -3,18 +3,62 @@
 Each controller is batched (``act`` maps observations ``(N, obs_dim)`` to actions ``(N, act_dim)``
 in one numpy expression) and honest: ``act`` reads only the observation. What it is given at
 construction are the design constants a control engineer knows about the plant (inertia, torque
-limit, observation scale), never state. :func:`for_env` builds the controller for an env id from
-an env instance's constants.
+limit, observation scale, the observation's named parts), never state. :func:`for_env` builds
+the controller for an env id from an env instance's constants.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
-__all__ = ["BoxLandingController", "ReorientController", "for_env"]
+from rigid_env.envs import split_observation
+from rigid_env.envs.box_landing import BoxLandingTask
+from rigid_env.envs.reorient import ReorientTask
+
+__all__ = ["BoxLandingController", "Controller", "ReorientController", "for_env"]
 
 
-class ReorientController:
+def _constants(env: Any) -> tuple[np.ndarray, np.ndarray, float, dict[str, int]]:
+    """Inertia, torque limit, spin scale and observation structure of a (vector) env."""
+    unwrapped = env.unwrapped
+    task = unwrapped.task
+    return task.body.inertia, task.max_torque, task.spin_scale, unwrapped.observation_structure
+
+
+class Controller:
+    """A batched policy ``(N, obs_dim) -> (N, 3)`` built from the plant's design constants."""
+
+    structure: Mapping[str, int]
+
+    def __init__(
+        self,
+        inertia: ArrayLike,
+        max_torque: ArrayLike,
+        spin_scale: float,
+        structure: Mapping[str, int],
+    ):
+        inertia = np.asarray(inertia, dtype=float)
+        self.inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
+        self.max_torque = np.broadcast_to(np.asarray(max_torque, dtype=float), (3,)).copy()
+        self.spin_scale = float(spin_scale)
+        self.structure = dict(structure)
+
+    def parts(self, obs: ArrayLike) -> dict[str, np.ndarray]:
+        """The observation's named parts, as float64."""
+        return split_observation(np.asarray(obs, dtype=float), self.structure)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.act(obs)
+
+
+class ReorientController(Controller):
     """Quaternion-feedback PD with gyroscopic compensation, saturated along the eigenaxis.
 
     Wie, Weiss & Arapostathis (1989), "Quaternion feedback regulator for spacecraft eigenaxis
@@ -40,33 +84,37 @@ class ReorientController:
 
     def __init__(
         self,
-        inertia,
-        max_torque,
+        inertia: ArrayLike,
+        max_torque: ArrayLike,
         spin_scale: float,
         natural_frequency: float = 3.0,
         damping_ratio: float = 0.8,
         max_rate: float = 3.0,
         gyroscopic: bool = True,
+        structure: Mapping[str, int] | None = None,
     ):
-        inertia = np.asarray(inertia, dtype=float)
-        self.inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
-        self.max_torque = np.broadcast_to(np.asarray(max_torque, dtype=float), (3,)).copy()
-        self.spin_scale = float(spin_scale)
+        super().__init__(
+            inertia,
+            max_torque,
+            spin_scale,
+            ReorientTask.structure() if structure is None else structure,
+        )
         self.k = 2.0 * natural_frequency**2
         self.c = 2.0 * damping_ratio * natural_frequency
         self.max_rate = float(max_rate)
         self.gyroscopic = bool(gyroscopic)  # False: plain PD (for comparison)
 
     @classmethod
-    def from_env(cls, env, **gains) -> ReorientController:
+    def from_env(cls, env: Any, **gains: Any) -> ReorientController:
         """Read the design constants (inertia, torque limit, spin scale) off a Reorient env."""
-        task = env.unwrapped.task
-        return cls(task.body.inertia, task.max_torque, task.spin_scale, **gains)
+        inertia, max_torque, spin_scale, structure = _constants(env)
+        return cls(inertia, max_torque, spin_scale, structure=structure, **gains)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs, dtype=float)
-        q_vec = obs[:, 0:3]
-        omega = obs[:, 4:7] * self.spin_scale  # body rad/s (clipped obs only beyond 5× the scale)
+        parts = self.parts(obs)
+        q_vec = parts["error_quaternion"][:, :3]
+        # Body rad/s (the observation is clipped only beyond 5× the scale).
+        omega = parts["angular_velocity"] * self.spin_scale
         rate_cmd = -(self.k / self.c) * q_vec
         norm = np.linalg.norm(rate_cmd, axis=1, keepdims=True)
         rate_cmd *= np.minimum(1.0, self.max_rate / np.maximum(norm, 1e-12))
@@ -79,11 +127,8 @@ class ReorientController:
         scale = np.maximum(1.0, np.max(np.abs(fraction), axis=1, keepdims=True))
         return (fraction / scale).astype(np.float32)
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.act(obs)
 
-
-class BoxLandingController:
+class BoxLandingController(Controller):
     """A hand-written landing strategy: face down in flight, kill the spin, damp the bounces.
 
     The observation gives, in body axes, the up direction ``u`` (an IMU's gravity), the target
@@ -104,36 +149,39 @@ class BoxLandingController:
 
     def __init__(
         self,
-        inertia,
-        max_torque,
+        inertia: ArrayLike,
+        max_torque: ArrayLike,
         spin_scale: float,
         flight_frequency: float = 16.0,
         ground_frequency: float = 5.0,
         damping_ratio: float = 1.0,
         max_rate: float = 12.0,
         ground_torque: float = 0.5,
+        structure: Mapping[str, int] | None = None,
     ):
-        inertia = np.asarray(inertia, dtype=float)
-        self.inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
-        self.max_torque = np.broadcast_to(np.asarray(max_torque, dtype=float), (3,)).copy()
-        self.spin_scale = float(spin_scale)
+        super().__init__(
+            inertia,
+            max_torque,
+            spin_scale,
+            BoxLandingTask.structure() if structure is None else structure,
+        )
         self.flight = (2.0 * flight_frequency**2, 2.0 * damping_ratio * flight_frequency)
         self.ground = (2.0 * ground_frequency**2, 2.0 * damping_ratio * ground_frequency)
         self.max_rate = float(max_rate)
         self.ground_torque = float(ground_torque)
 
     @classmethod
-    def from_env(cls, env, **gains) -> BoxLandingController:
+    def from_env(cls, env: Any, **gains: Any) -> BoxLandingController:
         """Read the design constants (inertia, torque limit, spin scale) off a BoxLanding env."""
-        task = env.unwrapped.task
-        return cls(task.body.inertia, task.max_torque, task.spin_scale, **gains)
+        inertia, max_torque, spin_scale, structure = _constants(env)
+        return cls(inertia, max_torque, spin_scale, structure=structure, **gains)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs, dtype=float)
-        down = -obs[:, 5:8]
-        omega = obs[:, 8:11] * self.spin_scale
-        normal = obs[:, 11:14]
-        touching = obs[:, 14:22].max(axis=1, keepdims=True) > 0.5
+        parts = self.parts(obs)
+        down = -parts["up"]
+        omega = parts["angular_velocity"] * self.spin_scale
+        normal = parts["target_normal"]
+        touching = parts["corner_contacts"].max(axis=1, keepdims=True) > 0.5
         axis = np.cross(normal, down)
         sin = np.linalg.norm(axis, axis=1, keepdims=True)
         cos = np.einsum("ij,ij->i", normal, down)[:, None]
@@ -153,11 +201,8 @@ class BoxLandingController:
         scale = np.maximum(1.0, np.max(np.abs(torque) / limit, axis=1, keepdims=True))
         return (fraction / scale).astype(np.float32)
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.act(obs)
 
-
-def for_env(env_id: str, env, **kwargs):
+def for_env(env_id: str, env: Any, **kwargs: Any) -> Controller:
     """The analytic controller for ``env_id``, with constants read off ``env`` (single or vector)."""
     if env_id.startswith("RigidEnv/Reorient"):
         return ReorientController.from_env(env, **kwargs)

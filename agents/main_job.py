@@ -1,6 +1,6 @@
 """The main job (``python -m agents``): train the default baseline and compare it.
 
-1. train PPO on ``RigidEnv/Reorient-v0`` with ``agents/hyperparams/reorient.yml`` (progress bar,
+1. train PPO on ``RigidEnv/Reorient-v0`` with ``agents/hyperparams/ppo.yml`` (progress bar,
    periodic seeded evaluation and checkpoints, best model kept);
 2. evaluate random, zero-torque, the analytic controller and the learned policy on the same
    seeded episodes and print the table;

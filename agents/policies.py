@@ -6,10 +6,15 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .controllers import for_env
+from .rollout import Policy
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 BUILTIN = ("random", "zero", "analytic")
 
@@ -27,21 +32,21 @@ def algo_of(path: str | Path) -> str:
     raise ValueError(f"policy: cannot tell the algorithm of {path} (policy class in {module})")
 
 
-def load_model(path: str | Path):
+def load_model(path: str | Path) -> BaseAlgorithm:
     """The SB3 model saved at ``path`` (on CPU)."""
     from stable_baselines3 import PPO, SAC
 
-    cls = {"ppo": PPO, "sac": SAC}[algo_of(path)]
+    cls: type[BaseAlgorithm] = PPO if algo_of(path) == "ppo" else SAC
     return cls.load(str(path), device="cpu")
 
 
-def run_info(path: str | Path) -> dict:
+def run_info(path: str | Path) -> dict[str, Any]:
     """The ``run.json`` written by ``agents.train`` next to a model, if there is one."""
     sidecar = Path(path).with_name("run.json")
     return json.loads(sidecar.read_text()) if sidecar.exists() else {}
 
 
-def make_policy(spec: str, env_id: str, env, seed: int = 0):
+def make_policy(spec: str, env_id: str, env: Any, seed: int = 0) -> Policy:
     """Policy ``spec`` (random, zero, analytic or a .zip path) for ``env`` (single or vector)."""
     space = getattr(env, "single_action_space", env.action_space)
     if spec == "zero":

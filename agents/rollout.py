@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -44,7 +45,7 @@ class Episodes:
         return out
 
 
-def make_vec(env_id: str, num_envs: int, **env_kwargs) -> gym.vector.VectorEnv:
+def make_vec(env_id: str, num_envs: int, **env_kwargs: Any) -> gym.vector.VectorEnv:
     return gym.make_vec(
         env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **env_kwargs
     )
@@ -55,14 +56,17 @@ def run_episodes(
     policy: Policy | Callable[[gym.vector.VectorEnv], Policy],
     episodes: int,
     seed: int = 0,
-    env_kwargs: dict | None = None,
+    env_kwargs: dict[str, Any] | None = None,
     policy_needs_env: bool = False,
 ) -> Episodes:
     """Run ``episodes`` seeded episodes of ``policy`` at once; ``policy_needs_env``: ``policy`` is
     a factory called with the vector env (e.g. to read its action space or constants)."""
     envs = make_vec(env_id, episodes, **(env_kwargs or {}))
     try:
-        act = policy(envs) if policy_needs_env else policy
+        if policy_needs_env:
+            act = cast(Callable[[gym.vector.VectorEnv], Policy], policy)(envs)
+        else:
+            act = cast(Policy, policy)
         obs, _ = envs.reset(seed=seed)
         returns = np.zeros(episodes)
         lengths = np.zeros(episodes, dtype=np.int64)

@@ -5,7 +5,7 @@
                            --overwrite]
     python -m agents.train --resume RUN_DIR
 
-Hyperparameters come from ``agents/hyperparams/<env>.yml``. The run folder (default a fresh
+Hyperparameters come from ``agents/hyperparams/<algo>.yml``. The run folder (default a fresh
 ``runs/<env>-<algo>-<time>``, printed at the start and the end) gets ``best_model.zip`` (best
 mean return at a seeded evaluation), ``final_model.zip``, ``monitor.csv`` (every training
 episode, from SB3's ``VecMonitor``), ``evaluations.csv``, ``learning_curve.png`` and ``run.json``

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigid_env import sim
+from rigid_env.sim.contacts import COMPATIBLE_INTEGRATORS
 from rigid_env.sim.contacts.pairs import sphere_box
 from rigid_env.sim.rotation import quat_exp, quat_rotate
 
@@ -20,8 +21,7 @@ BODY_MATERIAL = sim.Material(restitution=0.5, friction=0.0)
 
 
 def compatible() -> tuple[str, ...]:
-    from rigid_env.sim.contacts import COMPATIBLE_INTEGRATORS
-
+    """The integrators that carry contacts (``rigid_env.sim.contacts.COMPATIBLE_INTEGRATORS``)."""
     return COMPATIBLE_INTEGRATORS
 
 
@@ -99,12 +99,3 @@ def stack(integrator: str, dt: float, ratio: float, count: int):
         return np.maximum(-np.min(gaps, axis=-1), 0.0)
 
     return scene, state, depth
-
-
-def stacks_available() -> str | None:
-    """``None`` if the simulator builds a box–box contact scene, else the reason it does not."""
-    try:
-        stack(compatible()[0], 0.01, 1.0, 2)
-    except ValueError as err:
-        return str(err)
-    return None

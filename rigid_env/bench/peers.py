@@ -1,4 +1,4 @@
-"""MuJoCo 3 on the same free-body scene, when the optional ``peers`` extra is installed.
+"""MuJoCo (3 or 4) on the same free-body scene, when the optional ``peers`` extra is installed.
 
 The box of :mod:`rigid_env.bench.scenes` as one free joint (same mass, principal moments and
 initial state, no gravity), stepped by ``mujoco.rollout.rollout`` with a single ``MjData``,
@@ -26,15 +26,18 @@ except ImportError:  # optional extra "peers"
     mujoco = None
 
 
+SUPPORTED_MAJOR = ("3", "4")  # mujoco.rollout and the state API are the same in both
+
+
 def available() -> bool:
-    return mujoco is not None and mujoco.__version__.split(".")[0] == "3"
+    return mujoco is not None and mujoco.__version__.split(".")[0] in SUPPORTED_MAJOR
 
 
 def status() -> str:
     if mujoco is None:
         return "skipped (mujoco not installed; `pip install -e .[peers]`)"
     if not available():
-        return f"skipped (mujoco {mujoco.__version__} is not MuJoCo 3)"
+        return f"skipped (mujoco {mujoco.__version__} is not MuJoCo 3 or 4)"
     return f"MuJoCo {mujoco.__version__}, mujoco.rollout single-thread"
 
 
@@ -45,9 +48,6 @@ def free_body_model(integrator: str, dt: float):
         <inertial pos="0 0 0" mass="{scenes.BOX_MASS:.17g}" diaginertia="{" ".join(f"{m:.17g}" for m in moments)}"/>
       </body></worldbody></mujoco>"""
     return mujoco.MjModel.from_xml_string(xml)
-
-
-_SPEC = None
 
 
 def initial_state(model, omega_world, q=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
@@ -245,7 +245,7 @@ def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
                     "error_kind": "post-bounce velocity",
                     "velocity_error": verr,
                     "momentum_error": lerr,
-                    "error": None if verr is None else max(verr, lerr),
+                    "error": None if verr is None or lerr is None else max(verr, lerr),
                     "diverged": not finite,
                 }
                 records.append({**base, "batch": 1, "wall_s_per_sim_s": wall / t})

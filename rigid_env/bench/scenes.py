@@ -1,13 +1,9 @@
 """Scene factories the benchmarks share (what ``rigid_env.sim`` does not already provide).
 
-Every factory takes ``(integrator, dt)`` first so the benchmarks can sweep both. Scenes that
-need parts of the simulator not every checkout has (contacts, the landing scene) are looked up
-by :func:`optional_scene` and reported as "not available" when missing, never faked.
+Every factory takes ``(integrator, dt)`` first so the benchmarks can sweep both.
 """
 
 from __future__ import annotations
-
-import importlib
 
 import numpy as np
 
@@ -66,12 +62,3 @@ def spring(
 def stiff_spring(integrator: str, dt: float, k_dt2_over_m: float, mass: float = 1.0):
     """An undamped spring whose stiffness makes ``k Δt² / m`` equal the given number."""
     return spring(integrator, dt, stiffness=k_dt2_over_m * mass / dt**2, damping=0.0, mass=mass)
-
-
-def optional_scene(name: str):
-    """A factory from ``rigid_env.sim.scenes`` (e.g. ``landing_scene``), or ``None`` if absent."""
-    try:
-        module = importlib.import_module("rigid_env.sim.scenes")
-    except ImportError:
-        return None
-    return getattr(module, name, None)

@@ -26,6 +26,7 @@ import numpy as np
 
 from rigid_env import sim
 from rigid_env.sim import forces as sim_forces
+from rigid_env.sim.scenes import landing_scene
 
 from . import contact_cases, peers, report, scenes
 
@@ -71,7 +72,7 @@ LANDING_PREROLL_S = 1.0  # the landing batch is timed after this long: boxes on 
 def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
     """(name, factory(integrator, dt), initial state (kwargs or (scene, batch) -> State),
     integrators)."""
-    contact = tuple(i for i in contact_cases.compatible() if i in sim.INTEGRATORS)
+    contact = contact_cases.compatible()
     cases = [
         ("free_body", scenes.free_body, {"angular_velocity": scenes.TUMBLE_OMEGA}, sim.INTEGRATORS),
         (
@@ -81,25 +82,24 @@ def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
             tuple(i for i in ("splitting", "implicit_gyro", "implicit") if i in sim.INTEGRATORS),
         ),
     ]
-    landing = scenes.optional_scene("landing_scene")
-    if landing is not None:
-        # landing_scene returns (scene, initial_state(batch_shape, rng)); tilts and spins vary
-        # per batch element. Pre-rolled so the timed steps have the boxes bouncing and resting
-        # on the ground (the contact solver running), the state a training episode spends in.
-        def landing_initial(scene, batch):
-            state = landing()[1](batch_shape=(batch,), rng=np.random.default_rng(0))
-            for _ in range(int(round(LANDING_PREROLL_S / scene.dt))):
-                state = scene.step(state)
-            return state
 
-        cases.append(
-            (
-                "landing",
-                lambda i, dt: landing(integrator=i, dt=dt)[0],
-                landing_initial,
-                tuple(i for i in ("implicit_gyro", "euler", "implicit") if i in contact),
-            )
+    # landing_scene returns (scene, initial_state(batch_shape, rng)); tilts and spins vary
+    # per batch element. Pre-rolled so the timed steps have the boxes bouncing and resting
+    # on the ground (the contact solver running), the state a training episode spends in.
+    def landing_initial(scene, batch):
+        state = landing_scene()[1](batch_shape=(batch,), rng=np.random.default_rng(0))
+        for _ in range(int(round(LANDING_PREROLL_S / scene.dt))):
+            state = scene.step(state)
+        return state
+
+    cases.append(
+        (
+            "landing",
+            lambda i, dt: landing_scene(integrator=i, dt=dt)[0],
+            landing_initial,
+            tuple(i for i in ("implicit_gyro", "euler", "implicit") if i in contact),
         )
+    )
     cases.append(
         (
             "two_body_impact",
@@ -122,13 +122,6 @@ def _impact_initial(scene, batch):
         position=x,
         linear_velocity=np.broadcast_to(state.linear_velocity, (batch, 2, 3)),
     )
-
-
-def unavailable_scenes() -> list[str]:
-    missing = []
-    if scenes.optional_scene("landing_scene") is None:
-        missing.append("landing (rigid_env.sim.scenes.landing_scene not in this checkout)")
-    return missing
 
 
 def _initial(scene, initial, batch: int):
@@ -274,14 +267,12 @@ def measure(preset: str = "full", progress=None) -> dict:
         memory[name] = memory_per_body(scene, _initial(scene, initial, max(cfg["batches"])))
     if peers.available():
         records += peers.speed(cfg["batches"], cfg["block_s"], DT, progress)
-        if scenes.optional_scene("landing_scene") is not None:
-            records += peers.landing_speed(cfg["batches"], cfg["block_s"], DT, progress)
+        records += peers.landing_speed(cfg["batches"], cfg["block_s"], DT, progress)
     return {
         "records": records,
         "stage_breakdown": stages,
         "memory": memory,
         "environments": env_speed(cfg, progress),
-        "unavailable": unavailable_scenes(),
         "peers": peers.status(),
     }
 
@@ -290,69 +281,51 @@ def measure(preset: str = "full", progress=None) -> dict:
 
 
 def env_ids() -> list[str]:
-    """The registered ``RigidEnv/*`` environments (importing ``rigid_env.envs`` registers them)."""
-    try:
-        import gymnasium
+    """The registered ``RigidEnv/*`` environments."""
+    import gymnasium
 
-        import rigid_env.envs  # noqa: F401
-    except ImportError:
-        return []
+    import rigid_env  # noqa: F401  (registers the ids)
+
     return sorted(k for k in gymnasium.registry if k.startswith("RigidEnv/"))
 
 
 def env_speed(cfg: dict, progress=None) -> list[dict]:
-    """Env steps per second: one env (``gymnasium.make``), and native vector envs of N."""
+    """Env steps per second: one env (``gymnasium.make``), and native vector envs of N, each
+    run by :func:`rigid_env.bench.env_speed.run`."""
     import gymnasium
+
+    from . import env_speed as loop
 
     rows = []
     for env_id in env_ids():
         if progress:
             progress(f"speed env {env_id}")
         env = gymnasium.make(env_id)
-        env.reset(seed=0)
-        actions = [env.action_space.sample() for _ in range(64)]
-        rate = _env_rate(env, actions, cfg["env_steps"] * 5, 1)
+        single = loop.run(env, steps=cfg["env_steps"] * 5)
         env.close()
-        rows.append({"env": env_id, "mode": "single", "num_envs": 1, "env_steps_per_s": rate})
+        rows.append(
+            {
+                "env": env_id,
+                "mode": "single",
+                "num_envs": 1,
+                "env_steps_per_s": single.steps_per_s,
+                "physics_share": single.physics_share,
+            }
+        )
         for n in cfg["env_batches"]:
-            try:
-                venv = gymnasium.make_vec(
-                    env_id, num_envs=n, vectorization_mode="vector_entry_point"
-                )
-            except Exception as err:  # the env may not ship a native vector version
-                rows.append(
-                    {
-                        "env": env_id,
-                        "mode": "vector",
-                        "num_envs": n,
-                        "env_steps_per_s": None,
-                        "note": f"no native vector env: {err}",
-                    }
-                )
-                break
-            venv.reset(seed=0)
-            acts = [venv.action_space.sample() for _ in range(8)]
+            venv = gymnasium.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+            vec = loop.run(venv, steps=cfg["env_steps"])
+            venv.close()
             rows.append(
                 {
                     "env": env_id,
                     "mode": "vector",
                     "num_envs": n,
-                    "env_steps_per_s": _env_rate(venv, acts, cfg["env_steps"], n),
+                    "env_steps_per_s": vec.steps_per_s,
+                    "physics_share": vec.physics_share,
                 }
             )
-            venv.close()
     return rows
-
-
-def _env_rate(env, actions, steps: int, n: int) -> float:
-    for a in actions[:2]:
-        env.step(a)
-    start = time.perf_counter()
-    for i in range(steps):
-        _, _, term, trunc, _ = env.step(actions[i % len(actions)])
-        if n == 1 and (term or trunc):
-            env.reset()
-    return n * steps / (time.perf_counter() - start)
 
 
 # --- output ------------------------------------------------------------------------------------
@@ -415,27 +388,22 @@ def table(result: dict) -> str:
         ),
     ]
     envs = result["environments"]
-    if envs:
-        out += [
-            "",
-            "Environment steps per second:",
-            "",
-            report.markdown_table(
-                envs,
-                [
-                    ("env", "env", ""),
-                    ("mode", "mode", ""),
-                    ("N", "num_envs", "d"),
-                    ("env steps/s", "env_steps_per_s", ".3g"),
-                    ("note", "note", ""),
-                ],
-            ),
-        ]
-    else:
-        out += ["", "Environments: not available (no RigidEnv/* registered in this checkout)."]
     out += [
         "",
-        *(f"Not available: {m}" for m in result["unavailable"]),
+        "Environment steps per second:",
+        "",
+        report.markdown_table(
+            envs,
+            [
+                ("env", "env", ""),
+                ("mode", "mode", ""),
+                ("N", "num_envs", "d"),
+                ("env steps/s", "env_steps_per_s", ".3g"),
+                ("physics share", "physics_share", ".0%"),
+            ],
+        ),
+    ]
+    out += [
         "",
         f"MuJoCo: {result['peers']}",
     ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .. import sim
@@ -9,12 +11,12 @@ from .validation import finite_array, positive_vector
 
 
 def make_body(
-    body,
-    half_extents,
-    mass,
-    inertia,
+    body: sim.Body | None,
+    half_extents: Any,
+    mass: float | None,
+    inertia: Any,
     *,
-    default_half_extents,
+    default_half_extents: Any,
     default_mass: float,
     shapes: tuple[type, ...] | None = None,
 ) -> sim.Body:

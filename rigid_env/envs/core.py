@@ -25,6 +25,7 @@ and both flags ``False``. It truncates itself after ``max_episode_steps`` (``mak
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -34,7 +35,6 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .kinematics import apply, rotation_matrices
 from .rendering import Frame, Renderer, View
 from .validation import action_batch, choice, positive_int
 
@@ -42,23 +42,6 @@ from .validation import action_batch, choice, positive_int
 def _is_seed(value) -> bool:
     """A seed Gymnasium's ``seeding.np_random`` accepts: an int >= 0 (not a bool)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= 0)
-
-
-def step_body_torque(scene, state, rot, torque, frame_skip: int, after=None):
-    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
-
-    ``torque`` (N, 3) acts about the body's own axes (reaction wheels, thrusters), so it is
-    rotated into the world at every physics step with that step's starting orientation; ``rot``
-    (N, 3, 3) is R of ``state``, which the caller already has. ``after(state)``, if given, runs
-    after every physics step (e.g. to latch contact sensors between actions). Returns the state.
-    """
-    for k in range(frame_skip):
-        if k:
-            rot = rotation_matrices(state.orientation[:, 0])
-        state = scene.step(state, torque=apply(rot, torque)[:, None, :])
-        if after is not None:
-            after(state)
-    return state
 
 
 class BatchedTask(ABC):
@@ -70,12 +53,13 @@ class BatchedTask(ABC):
     """
 
     num_envs: int
+    observation_structure: dict[str, int]  # part name -> size, in order (Gymnasium v5 style)
     single_observation_space: spaces.Box
     single_action_space: spaces.Box
     render_fps: float
 
     @abstractmethod
-    def build_scene(self):
+    def build_scene(self) -> Any:
         """The task's :class:`rigid_env.sim.Scene`, built from the validated configuration."""
 
     @abstractmethod
@@ -87,7 +71,7 @@ class BatchedTask(ABC):
         """Reset the envs ``index`` from their stacked draws ``(len(index), D)``, batched."""
 
     @abstractmethod
-    def set_state(self, index: np.ndarray, **state) -> None:
+    def set_state(self, index: Any, *args: Any, **state: Any) -> None:
         """Put envs ``index`` in a hand-built state (task-specific keywords), as at a reset."""
 
     @abstractmethod
@@ -110,12 +94,12 @@ class BatchedTask(ABC):
     def frame(self, i: int) -> Frame:
         """What to draw for env ``i``: bodies, ghosts, text."""
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state.pop("scene", None)
         return state
 
-    def __setstate__(self, state):
+    def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self.scene = self.build_scene()
 
@@ -132,38 +116,41 @@ class TaskEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
-    task_class: type[BatchedTask]
+    task_class: Callable[..., BatchedTask]
 
-    def __init__(self, render_mode: str | None = None, **task_kwargs):
+    def __init__(self, render_mode: str | None = None, **task_kwargs: Any):
         self.render_mode = choice(
             render_mode, "render_mode", (None, *self.metadata["render_modes"])
         )
         self.task = self.task_class(1, **task_kwargs)
         self.observation_space = self.task.single_observation_space
         self.action_space = self.task.single_action_space
+        self.observation_structure = dict(self.task.observation_structure)
         self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
         self._action_shape = (1, *self.action_space.shape)
         self._index = np.zeros(1, dtype=np.intp)
         self._renderer: Renderer | None = None
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self.task.reset_envs(self._index, self.task.draw(self.np_random)[None])
         return self._observe_and_render()
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         action = action_batch(action, self._action_shape[1:], "action")[None]
         reward, terminated = self.task.step(action)
         obs, info = self._observe_and_render()
         return obs, float(reward[0]), bool(terminated[0]), False, info
 
-    def _observe_and_render(self):
+    def _observe_and_render(self) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.task.observation()[0], _single_info(self.task.info())
         if self.render_mode == "human":
             self.render()
         return obs, info
 
-    def set_state(self, **state) -> tuple[np.ndarray, dict]:
+    def set_state(self, **state: Any) -> tuple[np.ndarray, dict[str, Any]]:
         """Put the env in a hand-built state (see the task's ``set_state``); returns obs, info.
 
         Counts as the start of an episode (hold timers and the previous action are cleared).
@@ -171,7 +158,7 @@ class TaskEnv(gym.Env):
         self.task.set_state(self._index, **state)
         return self.task.observation()[0], _single_info(self.task.info())
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode to make()")
             return None
@@ -179,12 +166,12 @@ class TaskEnv(gym.Env):
             self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
         return self._renderer.draw(self.task.frame(0))
 
-    def close(self):
+    def close(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_renderer"] = None  # pygame surfaces and windows do not pickle
         return state
@@ -201,7 +188,7 @@ class TaskVectorEnv(VectorEnv):
         "render_fps": 20,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
-    task_class: type[BatchedTask]
+    task_class: Callable[..., BatchedTask]
     default_max_episode_steps: int
 
     def __init__(
@@ -209,7 +196,7 @@ class TaskVectorEnv(VectorEnv):
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
-        **task_kwargs,
+        **task_kwargs: Any,
     ):
         self.num_envs = positive_int(num_envs, "num_envs")
         if max_episode_steps is None:
@@ -221,6 +208,7 @@ class TaskVectorEnv(VectorEnv):
         self.task = self.task_class(self.num_envs, **task_kwargs)
         self.single_observation_space = self.task.single_observation_space
         self.single_action_space = self.task.single_action_space
+        self.observation_structure = dict(self.task.observation_structure)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
@@ -232,7 +220,7 @@ class TaskVectorEnv(VectorEnv):
 
     # --- seeding and resets ---------------------------------------------------------------------
 
-    def _seed(self, seed) -> None:
+    def _seed(self, seed: Any) -> None:
         if seed is None:
             if self._rngs is None:
                 self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
@@ -249,12 +237,19 @@ class TaskVectorEnv(VectorEnv):
         self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
 
     def _reset_index(self, index: np.ndarray) -> None:
-        draws = np.stack([self.task.draw(self._rngs[i]) for i in index])
+        rngs = self._rngs
+        assert rngs is not None, "reset() seeds the generators first"
+        draws = np.stack([self.task.draw(rngs[i]) for i in index])
         self.task.reset_envs(index, draws)
         self._steps[index] = 0
         self._prev_done[index] = False
 
-    def reset(self, *, seed=None, options: dict | None = None):
+    def reset(
+        self,
+        *,
+        seed: int | Sequence[int] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         self._seed(seed)
         mask = None if options is None else options.get("reset_mask")
         if mask is None:
@@ -270,7 +265,9 @@ class TaskVectorEnv(VectorEnv):
         self._reset_index(index)
         return self.task.observation(), self._info()
 
-    def step(self, action):
+    def step(
+        self, action: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         action = action_batch(action, self._action_shape, "action")
         reward, terminated = self.task.step(action)
         self._steps += 1
@@ -291,7 +288,9 @@ class TaskVectorEnv(VectorEnv):
         info.update({"_" + k: mask for k in list(info)})
         return info
 
-    def set_state(self, index=None, **state):
+    def set_state(
+        self, index: Any = None, **state: Any
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Put sub-envs ``index`` (default all) in a hand-built state; returns obs, info."""
         index = np.arange(self.num_envs) if index is None else self._index(index)
         self.task.set_state(index, **state)
@@ -316,7 +315,7 @@ class TaskVectorEnv(VectorEnv):
 
     # --- rendering ------------------------------------------------------------------------------
 
-    def render(self):
+    def render(self) -> tuple[np.ndarray | None, ...] | None:  # type: ignore[override]
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode to make_vec()")
             return None
@@ -324,12 +323,12 @@ class TaskVectorEnv(VectorEnv):
             self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
         return tuple(self._renderer.draw(self.task.frame(i)) for i in range(self.num_envs))
 
-    def close_extras(self, **kwargs):
+    def close_extras(self, **kwargs: Any) -> None:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_renderer"] = None
         return state

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -52,14 +53,14 @@ class Mesh:
     faces: tuple[tuple[int, ...], ...]
     edges: np.ndarray = field(init=False)  # (E, 2) unique vertex pairs
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         pairs = {
             tuple(sorted((f[k], f[(k + 1) % len(f)]))) for f in self.faces for k in range(len(f))
         }
         object.__setattr__(self, "edges", np.array(sorted(pairs), dtype=np.intp))
 
     @classmethod
-    def from_shape(cls, shape) -> Mesh:
+    def from_shape(cls, shape: Box | Sphere | Polyhedron) -> Mesh:
         if isinstance(shape, Box):
             # Box.vertices index = 4 ix + 2 iy + iz; each loop walks one face's corners in order.
             loops = (
@@ -92,10 +93,10 @@ class Mesh:
         verts = np.vstack(([0.0, 0.0, 1.0], ring, [0.0, 0.0, -1.0])) * radius
         bottom = len(verts) - 1
 
-        def idx(r, s):
+        def idx(r: int, s: int) -> int:
             return 1 + r * segments + s % segments
 
-        faces = [(0, idx(0, s), idx(0, s + 1)) for s in range(segments)]
+        faces: list[tuple[int, ...]] = [(0, idx(0, s), idx(0, s + 1)) for s in range(segments)]
         faces += [
             (idx(r, s), idx(r + 1, s), idx(r + 1, s + 1), idx(r, s + 1))
             for r in range(rings - 2)
@@ -143,17 +144,17 @@ class Renderer:
         self.mode, self.view, self.fps = render_mode, view, float(fps)
         self.size = (int(view.width), int(view.height))
         self.surface = pygame.Surface(self.size)
-        self.window = None
-        self.clock = None
+        self.window: Any = None  # pygame objects, created on first use
+        self.clock: Any = None
         self._background = self._gradient(view)
-        self._font = None
+        self._font: Any = None
         self._basis()
         self._light = np.array([0.35, -0.45, 0.82])
         self._light /= np.linalg.norm(self._light)
 
     # --- camera ---------------------------------------------------------------------------------
 
-    def _basis(self):
+    def _basis(self) -> None:
         cam = self.view.camera
         eye, target = np.asarray(cam.eye, float), np.asarray(cam.look_at, float)
         forward = target - eye
@@ -205,7 +206,7 @@ class Renderer:
     def _world(self, item: Item) -> np.ndarray:
         return item.position + item.mesh.vertices @ np.asarray(item.rotation).T
 
-    def _draw_solids(self, items: Sequence[Item]):
+    def _draw_solids(self, items: Sequence[Item]) -> None:
         polygons = []  # (depth, points, colour)
         for item in items:
             world = self._world(item)
@@ -228,7 +229,7 @@ class Renderer:
             self._pg.draw.polygon(self.surface, colour, pts.tolist())
             self._pg.draw.aalines(self.surface, (20, 20, 25), True, pts.tolist())
 
-    def _draw_axes(self, item: Item, colours, width: int):
+    def _draw_axes(self, item: Item, colours: Sequence[tuple[int, int, int]], width: int) -> None:
         if item.axes_length <= 0:
             return
         ends = item.position + item.axes_length * np.asarray(item.rotation).T  # rows: R e_i
@@ -238,7 +239,7 @@ class Renderer:
         for tip, colour in zip(tips, colours, strict=True):
             self._pg.draw.line(self.surface, colour, origin.tolist(), tip.tolist(), width)
 
-    def _draw_wire(self, item: Item):
+    def _draw_wire(self, item: Item) -> None:
         screen, depth = self.project(self._world(item))
         for a, b in item.mesh.edges:
             if depth[a] > 1e-3 and depth[b] > 1e-3:
@@ -246,7 +247,7 @@ class Renderer:
                     self.surface, (235, 235, 245), screen[a].tolist(), screen[b].tolist()
                 )
 
-    def _draw_ground(self):
+    def _draw_ground(self) -> None:
         v = self.view
         cx, cy = np.round(np.asarray(v.camera.look_at[:2]) / v.ground_cell) * v.ground_cell
         n = int(np.ceil(v.ground_extent / v.ground_cell))
@@ -263,14 +264,14 @@ class Renderer:
         for _, screen, colour in sorted(cells, key=lambda c: -c[0]):
             self._pg.draw.polygon(self.surface, colour, screen.tolist())
 
-    def _draw_shadow(self, item: Item):
+    def _draw_shadow(self, item: Item) -> None:
         flat = self._world(item) * np.array([1.0, 1.0, 0.0])
         screen, depth = self.project(flat)
         for face in item.mesh.faces:
             if np.all(depth[list(face)] > 1e-2):
                 self._pg.draw.polygon(self.surface, (60, 60, 58), screen[list(face)].tolist())
 
-    def _draw_text(self, lines: Sequence[str]):
+    def _draw_text(self, lines: Sequence[str]) -> None:
         if not lines:
             return
         pg = self._pg
@@ -283,7 +284,7 @@ class Renderer:
         for k, line in enumerate(lines):
             self.surface.blit(self._font.render(line, True, (235, 235, 235)), (8, 6 + 18 * k))
 
-    def _show(self):
+    def _show(self) -> None:
         pg = self._pg
         # pygame has one display: another renderer's close() may have shut it, so re-open then.
         if self.window is None or not pg.display.get_init():
@@ -296,7 +297,7 @@ class Renderer:
         pg.display.flip()
         self.clock.tick(self.fps)
 
-    def close(self):
+    def close(self) -> None:
         if self.window is not None:
             self._pg.display.quit()
             self.window = None

@@ -26,9 +26,11 @@ world at every physics step.
 
 ## Observation Space
 
-``Box((10,), float32)``. The error rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product,
-quaternions ``(x, y, z, w)``, ``q`` maps body to world) is the rotation from the target body
-frame to the current one, expressed in body axes; its sign is chosen with ``w >= 0`` so it is
+``Box((10,), float32)``, in named parts (``env.unwrapped.observation_structure``, as in
+Gymnasium's MuJoCo v5 envs; ``rigid_env.envs.split_observation`` slices by name):
+``error_quaternion`` (4), ``angular_velocity`` (3), ``previous_action`` (3). The error
+rotation ``q_err = q_target⁻¹ ∘ q`` (Hamilton product, quaternions ``(x, y, z, w)``, ``q`` maps
+body to world) is the rotation from the target body frame to the current one, in body axes; its sign is chosen with ``w >= 0`` so it is
 continuous near the goal, where it tends to ``(0, 0, 0, 1)``. For a small error its vector part
 is half the rotation vector that the body must undo, in the body axes the torques act on.
 
@@ -46,19 +48,22 @@ is half the rotation vector that the body must undo, in the body axes the torque
 | 9   | previous action, z                            | -1   | 1    | ``max_torque``    |
 
 Physics does not bound the spin (torque can spin the body up without limit), so its observation
-is clipped to ±5, i.e. five times the fastest initial spin with the default ``spin_scale``; it
+is clipped to ±5 (``OBS_LIMIT``), five times the fastest initial spin with the default
+``spin_scale``; it
 starts within ±1 and a sensible policy keeps it there. ``info["spin"]`` is never clipped.
 
 ## Rewards
 
 Per step, with θ the angle error (rad), Ω the body angular velocity (rad/s), a the action:
 
-| Term        | Value                                      | Default weight      |
-|-------------|--------------------------------------------|---------------------|
-| attitude    | ``-angle_weight · θ / π``                  | ``angle_weight=1``  |
-| spin        | ``-spin_weight · |Ω| / spin_scale``        | ``spin_weight=0.1`` |
-| effort      | ``-action_weight · |a|² / 3``              | ``action_weight=0.01`` |
-| success     | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10`` |
+| Term (``info`` key)  | Value                                      | Default weight      |
+|----------------------|--------------------------------------------|---------------------|
+| ``reward_angle``     | ``-angle_weight · θ / π``                  | ``angle_weight=1``  |
+| ``reward_spin``      | ``-spin_weight · |Ω| / spin_scale``        | ``spin_weight=0.1`` |
+| ``reward_ctrl``      | ``-action_weight · |a|² / 3``              | ``action_weight=0.01`` |
+| ``reward_success``   | ``+success_bonus`` on every step ``is_success`` holds | ``success_bonus=10`` |
+
+The reward is their sum; each term is in ``info`` under its key (as in Gymnasium's ``Hopper-v5``).
 
 The attitude and spin terms are linear (not squared) so their pull does not fade near the goal;
 every term but the bonus is ≤ 0, so with ``terminate_on_success=True`` reaching the goal sooner is
@@ -86,8 +91,8 @@ orientation is uniform on SO(3) per episode, or fixed by ``target_orientation``.
 ## Info
 
 Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, rad/s), ``energy``
-(kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array) and ``is_success``
-(``bool``).
+(kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array), the reward
+terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
 
 ## Arguments
 
@@ -114,9 +119,11 @@ Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, 
 | ``hold_time``         | ``1.0``               | time to stay within both thresholds, s                    |
 | ``terminate_on_success`` | ``True``           | end the episode at success                                |
 | ``angle_weight``, ``spin_weight``, ``action_weight``, ``success_bonus`` | 1, 0.1, 0.01, 10 | reward terms (table above) |
-| ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high (or 1 rad/s) |
+| ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high, at least 1 rad/s |
 | ``render_mode``       | ``None``              | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 
+The arguments other than ``render_mode`` form a :class:`ReorientConfig` (a frozen dataclass,
+validated when built); ``make(..., config=ReorientConfig(...))`` passes one whole.
 Bad values raise ``ValueError`` naming the argument. The vector env also takes ``num_envs`` and
 ``max_episode_steps``; seeded with ``s`` its sub-env ``i`` uses seed ``s + i`` and equals a single
 env seeded ``s + i`` step for step (Gymnasium ``NEXT_STEP`` autoreset). ``set_state(orientation=,
@@ -130,130 +137,87 @@ world frame, as in :mod:`rigid_env.sim`).
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
 
 from .. import sim
 from ..sim.rotation import quat_conjugate, quat_rotate
-from .bodies import make_body
-from .core import BatchedTask, TaskEnv, TaskVectorEnv, step_body_torque
+from .core import TaskEnv, TaskVectorEnv
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
 from .kinematics import apply, apply_transpose, left_matrices, rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
-from .validation import (
-    choice,
-    finite_array,
-    nonnegative_scalar,
-    positive_int,
-    positive_scalar,
-    positive_vector,
-    quaternion,
-    scalar_range,
-    unit_interval,
-)
+from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
 MAX_EPISODE_STEPS = 200
-SPIN_OBS_LIMIT = 5.0  # observed Ω / spin_scale is clipped to ± this (5× the fastest initial spin)
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-class ReorientTask(BatchedTask):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ReorientConfig(HoldTaskConfig):
+    """The arguments of Reorient-v0 (table in the module docstring), validated."""
+
+    default_half_extents: ClassVar[tuple[float, float, float]] = (0.3, 0.2, 0.1)
+    default_mass: ClassVar[float] = 12.0
+
+    tumble_fraction: float = 0.25
+    tumble_spread: float = 0.05
+    target_orientation: Any = None
+    angle_threshold: float = 0.1
+    spin_threshold: float = 0.05
+    angle_weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put("tumble_fraction", unit_interval(self.tumble_fraction, "tumble_fraction"))
+        put("tumble_spread", nonnegative_scalar(self.tumble_spread, "tumble_spread"))
+        if self.target_orientation is not None:
+            target = quaternions(self.target_orientation, "target_orientation")
+            if target.shape != (4,):
+                raise ValueError(f"target_orientation must be one quaternion, got {target!r}")
+            put("target_orientation", tuple(target.tolist()))
+        put("angle_threshold", positive_scalar(self.angle_threshold, "angle_threshold"))
+        put("spin_threshold", positive_scalar(self.spin_threshold, "spin_threshold"))
+        put("angle_weight", nonnegative_scalar(self.angle_weight, "angle_weight"))
+
+
+class ReorientTask(HoldTask):
     """Batched core of Reorient-v0; arguments as in the module docstring."""
 
-    def __init__(
-        self,
-        num_envs: int,
-        *,
-        body: sim.Body | None = None,
-        half_extents=None,
-        mass=None,
-        inertia=None,
-        integrator: str = sim.DEFAULT_INTEGRATOR,
-        dt: float = 0.025,
-        frame_skip: int = 2,
-        max_torque=1.0,
-        spin_range=(0.0, 2.0),
-        tumble_fraction: float = 0.25,
-        tumble_spread: float = 0.05,
-        target_orientation=None,
-        angle_threshold: float = 0.1,
-        spin_threshold: float = 0.05,
-        hold_time: float = 1.0,
-        terminate_on_success: bool = True,
-        angle_weight: float = 1.0,
-        spin_weight: float = 0.1,
-        action_weight: float = 0.01,
-        success_bonus: float = 10.0,
-        spin_scale: float | None = None,
-    ):
-        self.num_envs = positive_int(num_envs, "num_envs")
-        self.body = make_body(
-            body,
-            half_extents,
-            mass,
-            inertia,
-            default_half_extents=(0.3, 0.2, 0.1),
-            default_mass=12.0,
-        )
-        self.integrator = choice(integrator, "integrator", sim.INTEGRATORS)
-        self.dt = positive_scalar(dt, "dt")
-        self.frame_skip = positive_int(frame_skip, "frame_skip")
-        self.max_torque = positive_vector(max_torque, "max_torque")
-        self.spin_range = scalar_range(spin_range, "spin_range")
-        self.tumble_fraction = unit_interval(tumble_fraction, "tumble_fraction")
-        self.tumble_spread = nonnegative_scalar(tumble_spread, "tumble_spread")
-        self.fixed_target = (
-            None
-            if target_orientation is None
-            else quaternion(target_orientation, "target_orientation")
-        )
-        self.angle_threshold = positive_scalar(angle_threshold, "angle_threshold")
-        self.spin_threshold = positive_scalar(spin_threshold, "spin_threshold")
-        self.hold_time = nonnegative_scalar(hold_time, "hold_time")
-        if not isinstance(terminate_on_success, (bool, np.bool_)):
-            raise ValueError(f"terminate_on_success must be a bool, got {terminate_on_success!r}")
-        self.terminate_on_success = bool(terminate_on_success)
-        self.angle_weight = nonnegative_scalar(angle_weight, "angle_weight")
-        self.spin_weight = nonnegative_scalar(spin_weight, "spin_weight")
-        self.action_weight = nonnegative_scalar(action_weight, "action_weight")
-        self.success_bonus = nonnegative_scalar(success_bonus, "success_bonus")
-        if spin_scale is None:
-            spin_scale = self.spin_range[1] if self.spin_range[1] > 0 else 1.0
-        self.spin_scale = positive_scalar(spin_scale, "spin_scale")
+    config_class = ReorientConfig
+    config: ReorientConfig
+    observation_bounds = {
+        "error_quaternion": ((-1.0, -1.0, -1.0, 0.0), (1.0, 1.0, 1.0, 1.0)),
+        "angular_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
+        "previous_action": ((-1.0,) * 3, (1.0,) * 3),
+    }
+    task_reward_terms = ("reward_angle",)
 
-        self.action_period = self.dt * self.frame_skip
-        self.render_fps = 1.0 / self.action_period
-        # Steps within the thresholds before success; at least one so success needs the state.
-        self.hold_steps = max(1, math.ceil(self.hold_time / self.action_period - 1e-9))
-        self._inertia = np.array(self.body.inertia)  # body axes, symmetric
-        moments, axes = np.linalg.eigh(self._inertia)
+    def __init__(self, num_envs: int, config: ReorientConfig | None = None, **kwargs: Any):
+        super().__init__(num_envs, config, **kwargs)
+        moments, axes = np.linalg.eigh(self.inertia)
         self.principal_moments = moments
         self.intermediate_axis = axes[:, 1]  # eigh sorts ascending: column 1 is the middle one
-
-        self.scene = self.build_scene()
-        self.mesh = Mesh.from_shape(self.body.shape) if self.body.shape is not None else None
-
-        s = SPIN_OBS_LIMIT
-        high = np.array([1, 1, 1, 1, s, s, s, 1, 1, 1], dtype=np.float32)
-        low = -high
-        low[3] = 0.0
-        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        shape = self.body.shape
+        self.mesh = Mesh.from_shape(shape) if shape is not None else None
 
         n = self.num_envs
         self.state = self.scene.initial_state(batch_shape=(n,))
         self.target = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
         self._target_left = left_matrices(quat_conjugate(self.target))  # q_err = L(q_t⁻¹) q
-        self.prev_action = np.zeros((n, 3))
-        self.hold = np.zeros(n, dtype=np.int64)
         self._measure()
 
     def build_scene(self) -> sim.Scene:
-        return sim.Scene(self.body, self.dt, integrator=self.integrator)  # free body only
+        cfg = self.config
+        return sim.Scene(self.body, cfg.dt, integrator=cfg.integrator)  # free body only
 
     # --- resets ---------------------------------------------------------------------------------
 
@@ -262,67 +226,41 @@ class ReorientTask(BatchedTask):
         return np.concatenate((rng.random(2), rng.standard_normal(14)))
 
     def reset_envs(self, index: np.ndarray, draws: np.ndarray) -> None:
+        cfg = self.config
         u, g = draws[:, :2], draws[:, 2:]
         q0 = _normalize(g[:, 0:4])  # normalised 4-D Gaussians are uniform on SO(3)
-        target = _normalize(g[:, 4:8]) if self.fixed_target is None else self.fixed_target
-        low, high = self.spin_range
+        target = _normalize(g[:, 4:8]) if cfg.target_orientation is None else cfg.target_orientation
+        low, high = cfg.spin_range
         speed = low + (high - low) * u[:, 0]
         isotropic = _normalize(g[:, 8:11])
         side = np.where(isotropic @ self.intermediate_axis < 0, -1.0, 1.0)[:, None]
-        tumble = _normalize(side * self.intermediate_axis + self.tumble_spread * g[:, 11:14])
-        direction = np.where((u[:, 1] < self.tumble_fraction)[:, None], tumble, isotropic)
+        tumble = _normalize(side * self.intermediate_axis + cfg.tumble_spread * g[:, 11:14])
+        direction = np.where((u[:, 1] < cfg.tumble_fraction)[:, None], tumble, isotropic)
         omega = quat_rotate(q0, speed[:, None] * direction)  # body → world
         self.set_state(index, orientation=q0, angular_velocity=omega, target=target)
 
-    def set_state(self, index, orientation=None, angular_velocity=None, target=None) -> None:
+    def set_state(
+        self,
+        index: Any,
+        orientation: Any = None,
+        angular_velocity: Any = None,
+        target: Any = None,
+    ) -> None:
         """Hand-built state for envs ``index``: orientation (x, y, z, w), world angular velocity
         (rad/s), target quaternion; each broadcasts over ``index``; ``None`` keeps the current.
-        The hold timer and the previous action are cleared."""
+        The hold timer, the reward terms and the previous action are cleared."""
         index = np.asarray(index, dtype=np.intp)
-        k = len(index)
-        pos, q, vel, w = (np.array(a) for a in self.state.arrays())  # copies: states are values
-        if orientation is not None:
-            qi = finite_array(orientation, "orientation", (4,))
-            norm = np.linalg.norm(qi, axis=-1, keepdims=True)
-            if np.any(norm < 1e-12):
-                raise ValueError("orientation must be non-zero quaternions (x, y, z, w)")
-            q[index, 0] = np.broadcast_to(qi / norm, (k, 4))
-        if angular_velocity is not None:
-            w[index, 0] = np.broadcast_to(
-                finite_array(angular_velocity, "angular_velocity", (3,)), (k, 3)
-            )
-        if target is not None:
-            ti = finite_array(target, "target", (4,))
-            norm = np.linalg.norm(ti, axis=-1, keepdims=True)
-            if np.any(norm < 1e-12):
-                raise ValueError("target must be non-zero quaternions (x, y, z, w)")
-            self.target[index] = np.broadcast_to(ti / norm, (k, 4))
-            self._target_left = left_matrices(quat_conjugate(self.target))
-        pos[index] = 0.0
-        vel[index] = 0.0
-        self.state = sim.State(pos, q, vel, w)
-        self.prev_action[index] = 0.0
-        self.hold[index] = 0
-        self._measure()
-
-    # --- stepping -------------------------------------------------------------------------------
-
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        torque = action * self.max_torque  # body frame, (N, 3)
-        self.state = step_body_torque(self.scene, self.state, self._rot, torque, self.frame_skip)
-        self.prev_action = action
-        self._measure()
-        within = (self._angle < self.angle_threshold) & (self._spin < self.spin_threshold)
-        self.hold = np.where(within, self.hold + 1, 0)
-        success = self.hold >= self.hold_steps
-        reward = (
-            -(self.angle_weight / np.pi) * self._angle
-            - (self.spin_weight / self.spin_scale) * self._spin
-            - (self.action_weight / 3.0) * np.einsum("ij,ij->i", action, action)
-            + self.success_bonus * success
+        state = self._edited_state(
+            index, orientation=orientation, angular_velocity=angular_velocity
         )
-        terminated = success if self.terminate_on_success else np.zeros(self.num_envs, bool)
-        return reward, terminated
+        if target is not None:
+            self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
+            self._target_left = left_matrices(quat_conjugate(self.target))
+        self.state = state
+        self._start_episode(index)
+        self._measure()
+
+    # --- measurements, observation, reward ------------------------------------------------------
 
     def _measure(self) -> None:
         """Error quaternion, body angular velocity, angle and spin of the current state."""
@@ -335,21 +273,27 @@ class ReorientTask(BatchedTask):
         self._angle = 2.0 * np.arctan2(np.linalg.norm(err[:, :3], axis=1), err[:, 3])
         self._spin = np.linalg.norm(self._omega, axis=1)
 
-    def observation(self) -> np.ndarray:
-        obs = np.empty((self.num_envs, 10), dtype=np.float32)
-        obs[:, 0:4] = self._q_err
-        obs[:, 4:7] = np.clip(self._omega / self.spin_scale, -SPIN_OBS_LIMIT, SPIN_OBS_LIMIT)
-        obs[:, 7:10] = self.prev_action
-        return obs
+    def _observation_parts(self) -> dict[str, np.ndarray]:
+        return {
+            "error_quaternion": self._q_err,
+            "angular_velocity": np.clip(self._omega / self.spin_scale, -OBS_LIMIT, OBS_LIMIT),
+            "previous_action": self.prev_action,
+        }
 
-    def info(self) -> dict[str, np.ndarray]:
-        body_momentum = self._omega @ self._inertia  # I0 Ω (I0 symmetric)
+    def _task_terms(self) -> dict[str, np.ndarray]:
+        return {"reward_angle": -(self.config.angle_weight / np.pi) * self._angle}
+
+    def _within(self) -> np.ndarray:
+        cfg = self.config
+        return (self._angle < cfg.angle_threshold) & (self._spin < cfg.spin_threshold)
+
+    def _task_info(self) -> dict[str, np.ndarray]:
+        body_momentum = self._omega @ self.inertia  # I0 Ω (I0 symmetric)
         return {
             "angle_error": self._angle.copy(),
             "spin": self._spin.copy(),
             "energy": 0.5 * np.einsum("ij,ij->i", self._omega, body_momentum),
             "angular_momentum": apply(self._rot, body_momentum),  # L = R I0 Ω
-            "is_success": self.hold >= self.hold_steps,
         }
 
     # --- rendering ------------------------------------------------------------------------------
@@ -372,12 +316,9 @@ class ReorientTask(BatchedTask):
         ghost = Item(
             self.mesh, rotation_matrices(self.target[i : i + 1])[0], origin, axes_length=axes
         )
-        status = (
-            "success" if self.hold[i] >= self.hold_steps else ("holding" if self.hold[i] else "")
-        )
         text = (
             f"angle error {np.degrees(self._angle[i]):6.1f} deg",
-            f"spin {self._spin[i]:6.3f} rad/s   {status}",
+            f"spin {self._spin[i]:6.3f} rad/s   {self.status(i)}",
         )
         return Frame(bodies=(body,), ghosts=(ghost,), text=text)
 

@@ -1,10 +1,13 @@
 """Argument checks shared by the environments: each failure is a ``ValueError`` naming the argument.
 
 Scalar checks come from the simulator (:mod:`rigid_env.sim.validation`); this module adds what
-only environments need: integers, ranges, probabilities, quaternions, choices, and actions.
+only environments need: integers, ranges, quaternions, choices, and actions.
 """
 
 from __future__ import annotations
+
+from collections.abc import Collection
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -18,19 +21,22 @@ __all__ = [
     "positive_int",
     "positive_scalar",
     "positive_vector",
-    "quaternion",
+    "quaternions",
     "scalar_range",
     "unit_interval",
 ]
 
 
-def positive_int(value, name: str) -> int:
+T = TypeVar("T")
+
+
+def positive_int(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
 
 
-def scalar_range(value, name: str, minimum: float = 0.0) -> tuple[float, float]:
+def scalar_range(value: Any, name: str, minimum: float = 0.0) -> tuple[float, float]:
     """A pair ``(low, high)`` with ``minimum <= low <= high``, both finite."""
     try:
         low, high = (float(v) for v in value)
@@ -41,7 +47,7 @@ def scalar_range(value, name: str, minimum: float = 0.0) -> tuple[float, float]:
     return low, high
 
 
-def positive_vector(value, name: str, size: int = 3) -> np.ndarray:
+def positive_vector(value: Any, name: str, size: int = 3) -> np.ndarray:
     """A scalar (broadcast) or a ``size``-vector of positive finite numbers, as float64 (size,)."""
     arr = finite_array(value, name)
     if arr.ndim == 0:
@@ -53,22 +59,22 @@ def positive_vector(value, name: str, size: int = 3) -> np.ndarray:
     return arr
 
 
-def quaternion(value, name: str) -> np.ndarray:
-    """A non-zero (x, y, z, w) quaternion, normalised."""
+def quaternions(value: Any, name: str) -> np.ndarray:
+    """Non-zero quaternions (x, y, z, w), shape ``(..., 4)``, normalised."""
     q = finite_array(value, name, (4,))
-    norm = np.linalg.norm(q)
-    if q.shape != (4,) or norm < 1e-12:
-        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {value!r}")
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.any(norm < 1e-12):
+        raise ValueError(f"{name} must be non-zero quaternions (x, y, z, w), got {value!r}")
     return q / norm
 
 
-def choice(value, name: str, options) -> object:
+def choice(value: T, name: str, options: Collection[Any]) -> T:
     if value not in options:
         raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
 
 
-def action_batch(action, shape: tuple[int, ...], name: str = "action") -> np.ndarray:
+def action_batch(action: Any, shape: tuple[int, ...], name: str = "action") -> np.ndarray:
     """A float64 copy of ``action`` with exactly ``shape``, finite, clipped to [-1, 1].
 
     Raises ``ValueError`` for a wrong shape, a non-numeric value, NaN or infinity; nothing in the

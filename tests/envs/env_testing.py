@@ -16,12 +16,18 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import rigid_env  # noqa: F401  (registers the ids)
+from rigid_env.envs import split_observation
 
 
 def make_vec(env_id: str, num_envs: int, **kwargs):
     return gym.make_vec(
         env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs
     )
+
+
+def part(env, obs: np.ndarray, name: str) -> np.ndarray:
+    """The observation part ``name`` of ``obs`` (single or batched), by the env's structure."""
+    return split_observation(obs, env.unwrapped.observation_structure)[name]
 
 
 def assert_checkers_pass(env_id: str, **kwargs) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -9,19 +10,29 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from env_testing import BAD_ACTIONS, assert_bad_action_rejected, assert_checkers_pass, make_vec
+from env_testing import (
+    BAD_ACTIONS,
+    assert_bad_action_rejected,
+    assert_checkers_pass,
+    make_vec,
+    part,
+)
 from gymnasium.vector import AutoresetMode
 
 import rigid_env
-from rigid_env.envs import ENV_SPECS
-from rigid_env.envs.box_landing import BoxLandingEnv, BoxLandingVectorEnv
-from rigid_env.envs.reorient import ReorientEnv, ReorientVectorEnv
+from rigid_env.envs import ENV_SPECS, box_landing, reorient
+from rigid_env.envs.box_landing import BoxLandingConfig, BoxLandingEnv, BoxLandingVectorEnv
+from rigid_env.envs.reorient import ReorientConfig, ReorientEnv, ReorientVectorEnv
 
 ROOT = Path(rigid_env.__file__).resolve().parents[1]
 ENVS = {
     "RigidEnv/Reorient-v0": (ReorientEnv, ReorientVectorEnv),
     "RigidEnv/BoxLanding-v0": (BoxLandingEnv, BoxLandingVectorEnv),
 }
+MODULES = {"RigidEnv/Reorient-v0": reorient, "RigidEnv/BoxLanding-v0": box_landing}
+CONFIGS = {"RigidEnv/Reorient-v0": ReorientConfig, "RigidEnv/BoxLanding-v0": BoxLandingConfig}
+# Short BoxLanding drops, so the episodes below touch down (contact, bounces) within a few steps.
+FAST = {"RigidEnv/Reorient-v0": {}, "RigidEnv/BoxLanding-v0": dict(height_range=(0.3, 0.5))}
 
 
 def test_every_registered_env_is_covered():
@@ -32,7 +43,9 @@ def test_every_registered_env_is_covered():
 def test_registered_with_time_limit_and_vector_entry_point(env_id):
     single, vector = ENVS[env_id]
     spec = gym.spec(env_id)
-    assert spec.max_episode_steps == ENV_SPECS[env_id]["max_episode_steps"]
+    # The registered limit is the env module's own constant, and the vector env's default.
+    assert spec.max_episode_steps == MODULES[env_id].MAX_EPISODE_STEPS
+    assert vector.default_max_episode_steps == MODULES[env_id].MAX_EPISODE_STEPS
     assert isinstance(gym.make(env_id).unwrapped, single)
     vec = make_vec(env_id, 3)
     assert isinstance(vec.unwrapped, vector)
@@ -43,6 +56,25 @@ def test_registered_with_time_limit_and_vector_entry_point(env_id):
 @pytest.mark.parametrize("env_id", ENVS)
 def test_make_with_module_prefix_needs_no_import(env_id):
     code = f"import gymnasium as g; e = g.make('rigid_env:{env_id}'); e.reset(seed=0)"
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True, timeout=60)
+
+
+@pytest.mark.parametrize(
+    "code",
+    [
+        # The simulator loads without Gymnasium.
+        "import sys, rigid_env.sim; assert 'gymnasium' not in sys.modules",
+        # Importing the package before Gymnasium still registers the ids once Gymnasium loads,
+        # and importing the simulator first does not stop the prefix form from finding them.
+        "import rigid_env, gymnasium as g; g.make('RigidEnv/Reorient-v0').reset(seed=0)",
+        "import rigid_env.sim, gymnasium as g; g.make('rigid_env:RigidEnv/BoxLanding-v0')",
+        # Gymnasium first, then the package: registered at import.
+        "import gymnasium as g, rigid_env; g.make_vec('RigidEnv/BoxLanding-v0', 2,"
+        " vectorization_mode='vector_entry_point')",
+    ],
+    ids=["sim-without-gymnasium", "package-then-gymnasium", "sim-then-prefix", "gymnasium-first"],
+)
+def test_imports_and_registration_orders(code):
     subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True, timeout=60)
 
 
@@ -70,7 +102,7 @@ def test_autoreset_ignores_the_action_and_returns_reset_values(env_id):
     b = envs[1].step(-np.ones((2, 3), np.float32))
     assert np.array_equal(a[0], b[0]), "the action on the autoreset step must be ignored"
     assert not a[1].any() and not a[2].any() and not a[3].any()
-    assert np.all(a[0][:, -3:] == 0), "previous action (last 3 entries) is cleared at reset"
+    assert np.all(part(envs[0], a[0], "previous_action") == 0), "cleared at reset"
     for key in RESET_INFO_ZERO[env_id]:
         assert np.all(a[4][key] == 0)
 
@@ -110,3 +142,101 @@ def test_bad_vector_action_raises_and_leaves_env_usable(env_id, bad):
         env.step(bad)
     good = 0.2 * np.ones((2, 3), np.float32)
     assert np.array_equal(env.step(good)[0], twin.step(good)[0])
+
+
+# --- named observation parts, reward terms, configuration ----------------------------------------
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_observation_structure_names_every_entry_and_matches_the_state(env_id):
+    env = gym.make(env_id)
+    structure = env.unwrapped.observation_structure
+    assert sum(structure.values()) == env.observation_space.shape[0]
+    assert make_vec(env_id, 2).unwrapped.observation_structure == structure
+    obs, _ = env.reset(seed=3)
+    action = np.array([0.5, -0.25, 1.0], np.float32)
+    obs, *_ = env.step(action)
+    task = env.unwrapped.task
+    # Parts read back what they name: the previous action and the scaled body angular velocity.
+    assert np.array_equal(part(env, obs, "previous_action"), action)
+    omega = task.state.body_angular_velocity[0, 0] / task.spin_scale
+    np.testing.assert_allclose(part(env, obs, "angular_velocity"), omega, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ValueError, match="obs"):
+        part(env, obs[:-1], "previous_action")
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_reward_terms_in_info_sum_to_the_reward(env_id):
+    # The reward is the sum of the reward_* terms, added in the order of task.reward_terms: the
+    # same float64 additions in the same order, so the sums agree to rounding of 5 terms at most.
+    env = gym.make(env_id, **FAST[env_id])
+    _, info = env.reset(seed=2)
+    terms = env.unwrapped.task.reward_terms
+    assert {k for k in info if k.startswith("reward_")} == set(terms)
+    assert all(info[k] == 0.0 for k in terms), "a reset starts with no reward"
+    rng = np.random.default_rng(2)
+    nonzero = set()
+    for _ in range(40):
+        _, reward, _, _, info = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+        assert reward == pytest.approx(sum(info[k] for k in terms), rel=1e-14, abs=1e-15)
+        nonzero |= {k for k in terms if info[k] != 0.0}
+    assert {"reward_angle", "reward_spin", "reward_ctrl"} <= nonzero
+    # Batched: the same for every sub-env, including the autoreset step (all terms 0).
+    vec = make_vec(env_id, 3, max_episode_steps=5, **FAST[env_id])
+    vec.reset(seed=2)
+    for _ in range(8):
+        _, reward, _, _, info = vec.step(rng.uniform(-1, 1, (3, 3)).astype(np.float32))
+        total = np.sum([info[k] for k in terms], axis=0)
+        np.testing.assert_allclose(reward, total, rtol=1e-14, atol=1e-15)
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_a_config_object_or_keywords_but_not_both(env_id):
+    config = CONFIGS[env_id](dt=0.01, frame_skip=3)
+    task = gym.make(env_id, config=config).unwrapped.task
+    assert task.config is config and (task.dt, task.frame_skip) == (0.01, 3)
+    assert make_vec(env_id, 2, config=config).unwrapped.task.config is config
+    with pytest.raises(ValueError, match="config"):
+        gym.make(env_id, config=config, dt=0.02)
+    with pytest.raises(ValueError, match="config"):
+        gym.make(env_id, config={"dt": 0.01})
+    with pytest.raises(ValueError, match="frame_skip"):
+        CONFIGS[env_id](frame_skip=0)
+    # A config is a value: replace() builds a new one, validated again, the body rebuilt.
+    heavier = dataclasses.replace(config, mass=3.0)
+    assert heavier.rigid_body.mass == 3.0 and config.rigid_body.mass != 3.0
+    with pytest.raises(ValueError, match="dt"):
+        dataclasses.replace(config, dt=-1.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.dt = 0.5
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_default_spin_scale_is_the_top_of_the_spin_range_but_at_least_one(env_id):
+    cls = CONFIGS[env_id]
+    assert cls(spin_range=(0.0, 2.5)).observed_spin_scale == 2.5
+    assert cls(spin_range=(0.0, 0.5)).observed_spin_scale == 1.0
+    assert cls(spin_range=(0.0, 0.5), spin_scale=0.25).observed_spin_scale == 0.25
+
+
+# --- the Gymnasium ecosystem -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_record_video_writes_an_episode_headless(env_id, tmp_path):
+    from gymnasium.wrappers import RecordVideo  # writes with moviepy (extra 'render')
+
+    env = RecordVideo(
+        gym.make(env_id, render_mode="rgb_array", max_episode_steps=6, **FAST[env_id]),
+        str(tmp_path / "videos"),
+        episode_trigger=lambda episode: True,
+        disable_logger=True,
+    )
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        done = terminated or truncated
+    env.close()
+    videos = sorted((tmp_path / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000

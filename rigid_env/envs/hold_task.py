@@ -1,0 +1,306 @@
+"""The shared core of body-torque tasks with a hold-time goal (Reorient, BoxLanding).
+
+One rigid body, driven by a saturated torque about its own axes (reaction wheels, thrusters),
+must reach a goal region of its state and stay there for ``hold_time``. What every such task
+shares lives here: the configuration and its validation (:class:`HoldTaskConfig`), stepping with
+a body-fixed torque, the hold timer, success and termination, the reward terms common to all
+(spin, control effort, success bonus), the named observation layout, ``info`` and the frame's
+status text. A task subclasses :class:`HoldTask` (and its config) and supplies only what differs:
+the start distribution, the measurements, the observation parts, its own reward terms and the
+goal region.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+
+from .. import sim
+from .bodies import make_body
+from .core import BatchedTask
+from .kinematics import apply, rotation_matrices
+from .observations import observation_slices
+from .validation import (
+    choice,
+    finite_array,
+    nonnegative_scalar,
+    positive_int,
+    positive_scalar,
+    positive_vector,
+    quaternions,
+    scalar_range,
+)
+
+OBS_LIMIT = 5.0  # scaled velocities in an observation are clipped to ± this
+STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # State.arrays()
+
+Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
+
+
+def step_body_torque(
+    scene: sim.Scene,
+    state: sim.State,
+    rot: np.ndarray,
+    torque: np.ndarray,
+    frame_skip: int,
+    after: Callable[[sim.State], None] | None = None,
+) -> sim.State:
+    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
+
+    ``torque`` (N, 3) acts about the body's own axes, so it is rotated into the world at every
+    physics step with that step's starting orientation; ``rot`` (N, 3, 3) is R of ``state``,
+    which the caller already has. ``after(state)``, if given, runs after every physics step
+    (e.g. to latch contact sensors between actions). Returns the state.
+    """
+    for k in range(frame_skip):
+        if k:
+            rot = rotation_matrices(state.orientation[:, 0])
+        state = scene.step(state, torque=apply(rot, torque)[:, None, :])
+        if after is not None:
+            after(state)
+    return state
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (N, 3) stacks, elementwise (exact whatever the batch size)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class HoldTaskConfig:
+    """Arguments every body-torque hold task takes, validated when the config is built.
+
+    Each bad value raises ``ValueError`` naming the argument. Subclasses add their own fields
+    (and may change the defaults) and extend :meth:`__post_init__`. ``rigid_body`` is the body
+    the task simulates, built from ``body``/``half_extents``/``mass``/``inertia``.
+    """
+
+    # Class-level defaults of the body and the integrators the task's scene accepts.
+    default_half_extents: ClassVar[tuple[float, float, float]] = (0.3, 0.2, 0.1)
+    default_mass: ClassVar[float] = 1.0
+    body_shapes: ClassVar[tuple[type, ...] | None] = None
+    integrators: ClassVar[tuple[str, ...]] = sim.INTEGRATORS
+
+    body: sim.Body | None = None
+    half_extents: Any = None
+    mass: float | None = None
+    inertia: Any = None
+    integrator: str = sim.DEFAULT_INTEGRATOR
+    dt: float = 0.025
+    frame_skip: int = 2
+    max_torque: Any = 1.0
+    spin_range: tuple[float, float] = (0.0, 2.0)
+    hold_time: float = 1.0
+    terminate_on_success: bool = True
+    spin_weight: float = 0.1
+    action_weight: float = 0.01
+    success_bonus: float = 10.0
+    spin_scale: float | None = None
+    rigid_body: sim.Body = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        put(
+            "rigid_body",
+            make_body(
+                self.body,
+                self.half_extents,
+                self.mass,
+                self.inertia,
+                default_half_extents=self.default_half_extents,
+                default_mass=self.default_mass,
+                shapes=self.body_shapes,
+            ),
+        )
+        put("integrator", choice(self.integrator, "integrator", self.integrators))
+        put("dt", positive_scalar(self.dt, "dt"))
+        put("frame_skip", positive_int(self.frame_skip, "frame_skip"))
+        put("max_torque", tuple(positive_vector(self.max_torque, "max_torque").tolist()))
+        put("spin_range", scalar_range(self.spin_range, "spin_range"))
+        put("hold_time", nonnegative_scalar(self.hold_time, "hold_time"))
+        if not isinstance(self.terminate_on_success, (bool, np.bool_)):
+            raise ValueError(
+                f"terminate_on_success must be a bool, got {self.terminate_on_success!r}"
+            )
+        put("terminate_on_success", bool(self.terminate_on_success))
+        for name in ("spin_weight", "action_weight", "success_bonus"):
+            put(name, nonnegative_scalar(getattr(self, name), name))
+        if self.spin_scale is not None:
+            put("spin_scale", positive_scalar(self.spin_scale, "spin_scale"))
+
+    @property
+    def observed_spin_scale(self) -> float:
+        """Ω is observed as Ω / this: ``spin_scale``, or by default the fastest initial spin
+        (the top of ``spin_range``) but at least 1 rad/s, so the spin starts within ±1."""
+        return self.spin_scale if self.spin_scale is not None else max(self.spin_range[1], 1.0)
+
+    @property
+    def action_period(self) -> float:
+        return self.dt * self.frame_skip
+
+    @property
+    def hold_steps(self) -> int:
+        """Steps within the goal before success; at least one, so success needs the state."""
+        return max(1, math.ceil(self.hold_time / self.action_period - 1e-9))
+
+
+class HoldTask(BatchedTask):
+    """Batched core of a body-torque task with a hold-time goal.
+
+    Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
+    per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
+    :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
+    :meth:`_observation_parts`, :meth:`_task_terms`, :meth:`_within`, :meth:`_task_info`,
+    :meth:`view` and :meth:`frame`; :meth:`set_state` ends with :meth:`_start_episode`.
+    """
+
+    config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
+    observation_bounds: ClassVar[Mapping[str, Bounds]]
+    task_reward_terms: ClassVar[tuple[str, ...]]
+
+    config: HoldTaskConfig
+    state: sim.State
+    _rot: np.ndarray
+    _angle: np.ndarray
+    _spin: np.ndarray
+
+    def __init__(self, num_envs: int, config: HoldTaskConfig | None = None, **kwargs: Any):
+        self.num_envs = positive_int(num_envs, "num_envs")
+        if config is None:
+            config = self.config_class(**kwargs)
+        elif kwargs:
+            raise ValueError(f"config: give either config or keyword arguments, not both {kwargs}")
+        elif not isinstance(config, self.config_class):
+            raise ValueError(f"config must be a {self.config_class.__name__}, got {config!r}")
+        self.config = config
+        self.body = config.rigid_body
+        self.inertia = np.array(self.body.inertia)  # body axes, symmetric
+        self.dt, self.frame_skip = config.dt, config.frame_skip
+        self.max_torque = np.array(config.max_torque)
+        self.spin_scale = config.observed_spin_scale
+        self.hold_steps = config.hold_steps
+        self.render_fps = 1.0 / config.action_period
+        self.scene = self.build_scene()
+
+        self.observation_structure = self.structure()
+        self._slices = observation_slices(self.observation_structure)
+        size = sum(self.observation_structure.values())
+        low, high = np.empty(size, np.float32), np.empty(size, np.float32)
+        for name, (lo, hi) in self.observation_bounds.items():
+            low[self._slices[name]], high[self._slices[name]] = lo, hi
+        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.reward_terms = (
+            *self.task_reward_terms,
+            "reward_spin",
+            "reward_ctrl",
+            "reward_success",
+        )
+
+        n = self.num_envs
+        self.prev_action = np.zeros((n, 3))
+        self.hold = np.zeros(n, dtype=np.int64)
+        self.terms: dict[str, np.ndarray] = {name: np.zeros(n) for name in self.reward_terms}
+
+    @classmethod
+    def structure(cls) -> dict[str, int]:
+        """The observation's named parts, ``name -> size`` in order (``observation_structure``)."""
+        return {name: int(np.size(low)) for name, (low, _) in cls.observation_bounds.items()}
+
+    # --- what a task supplies -------------------------------------------------------------------
+
+    @abstractmethod
+    def _measure(self) -> None:
+        """Read everything off ``self.state``; must set ``_rot``, ``_angle`` and ``_spin``."""
+
+    @abstractmethod
+    def _observation_parts(self) -> dict[str, np.ndarray]:
+        """Each part of ``observation_bounds`` (clipped to its bounds), ``(N,)`` or ``(N, k)``."""
+
+    @abstractmethod
+    def _task_terms(self) -> dict[str, np.ndarray]:
+        """The task's own reward terms (``task_reward_terms``), after a step."""
+
+    @abstractmethod
+    def _within(self) -> np.ndarray:
+        """Whether each env is within the goal region now, ``(N,)`` bool."""
+
+    @abstractmethod
+    def _task_info(self) -> dict[str, np.ndarray]:
+        """The task's own ``info`` entries (fresh arrays)."""
+
+    def _advance(self, torque: np.ndarray) -> None:
+        """Step the physics for one action (tasks with sensors to latch override this)."""
+        self.state = step_body_torque(self.scene, self.state, self._rot, torque, self.frame_skip)
+
+    # --- shared ---------------------------------------------------------------------------------
+
+    def _start_episode(self, index: np.ndarray) -> None:
+        """Clear the per-episode memory of envs ``index`` (after a reset or a hand-built state)."""
+        self.prev_action[index] = 0.0
+        self.hold[index] = 0
+        for term in self.terms.values():
+            term[index] = 0.0
+
+    def _edited_state(self, index: np.ndarray, **values: Any) -> sim.State:
+        """The current state with ``values`` (position, orientation, linear_velocity,
+        angular_velocity; ``None`` keeps it) put into envs ``index``, each broadcast over them."""
+        k = len(index)
+        copies = (np.array(a) for a in self.state.arrays())  # copies: states are values
+        arrays = dict(zip(STATE_FIELDS, copies, strict=True))
+        for name, value in values.items():
+            if value is None:
+                continue
+            arr = quaternions(value, name) if name == "orientation" else finite_array(value, name)
+            width = arrays[name].shape[-1]
+            try:
+                arrays[name][index, 0] = np.broadcast_to(arr, (k, width))
+            except ValueError:
+                raise ValueError(f"{name} must broadcast to ({k}, {width})") from None
+        return sim.State(**arrays)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self._advance(action * self.max_torque)  # body-frame torque, (N, 3)
+        self.prev_action = action
+        self._measure()
+        self.hold = np.where(self._within(), self.hold + 1, 0)
+        success = self.hold >= self.hold_steps
+        cfg = self.config
+        self.terms = {
+            **self._task_terms(),
+            "reward_spin": -(cfg.spin_weight / self.spin_scale) * self._spin,
+            "reward_ctrl": -(cfg.action_weight / 3.0) * dot(action, action),
+            "reward_success": cfg.success_bonus * success,
+        }
+        reward = np.zeros(self.num_envs)
+        for term in self.terms.values():  # in the order of reward_terms
+            reward = reward + term
+        terminated = success if cfg.terminate_on_success else np.zeros(self.num_envs, bool)
+        return reward, terminated
+
+    def observation(self) -> np.ndarray:
+        obs = np.empty((self.num_envs, self.single_observation_space.shape[0]), np.float32)
+        for name, part in self._observation_parts().items():
+            obs[:, self._slices[name]] = part.reshape(self.num_envs, -1)
+        return obs
+
+    def info(self) -> dict[str, np.ndarray]:
+        return {
+            **self._task_info(),
+            **{name: term.copy() for name, term in self.terms.items()},
+            "is_success": self.hold >= self.hold_steps,
+        }
+
+    def status(self, i: int) -> str:
+        """Env ``i``'s goal status for the frame's text."""
+        if self.hold[i] >= self.hold_steps:
+            return "success"
+        return "holding" if self.hold[i] else ""

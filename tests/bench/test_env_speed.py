@@ -1,0 +1,35 @@
+"""The one env-speed loop (rigid_env.bench.env_speed.run), as bench.speed uses it.
+
+Rates are machine noise and never asserted; what the loop counts and times is.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+from rigid_env.bench import env_speed, speed
+
+ID = "RigidEnv/Reorient-v0"
+
+
+def test_run_counts_env_steps_and_times_the_physics_inside_the_wall_time():
+    single = env_speed.run(gym.make(ID, max_episode_steps=3), steps=7)  # resets on the way
+    assert single.env_steps == 7
+    assert 0.0 < single.physics_s < single.wall_s
+    vec = gym.make_vec(ID, num_envs=4, vectorization_mode="vector_entry_point")
+    batched = env_speed.run(vec, steps=5)
+    assert batched.env_steps == 20 and batched.steps_per_s == 20 / batched.wall_s
+    assert 0.0 < batched.physics_share < 1.0
+    with pytest.raises(ValueError, match="steps"):
+        env_speed.run(vec, steps=5, seconds=1.0)
+
+
+def test_speed_reports_every_env_single_and_vector_with_the_same_loop():
+    rows = speed.env_speed({"env_steps": 2, "env_batches": (1, 3)})
+    assert {(r["env"], r["mode"], r["num_envs"]) for r in rows} == {
+        (env_id, mode, n)
+        for env_id in ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
+        for mode, n in (("single", 1), ("vector", 1), ("vector", 3))
+    }
+    assert all(r["env_steps_per_s"] > 0 and 0 < r["physics_share"] < 1 for r in rows)
