@@ -22,7 +22,7 @@ from agents import evaluate, main_job, run_folder, train_cli
 from agents.train import train
 from rigid_env import cli
 from rigid_env.bench import __main__ as bench_cli
-from rigid_env.bench import env_speed, landing_feasibility
+from rigid_env.bench import env_speed
 
 ID = "RigidEnv/Reorient-v0"
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,7 +32,6 @@ COMMANDS = {
     "main_job": (main_job.main, main_job.PROG),
     "bench": (bench_cli.main, bench_cli.PROG),
     "env_speed": (env_speed.main, env_speed.PROG),
-    "landing": (landing_feasibility.main, landing_feasibility.PROG),
 }
 
 
@@ -205,10 +204,6 @@ BENCH_CASES = [
     ("env_speed", [ID, "--num-envs", "0"], "--num-envs"),
     ("env_speed", [ID, "--seed", "-1"], "--seed"),
     ("env_speed", ["NoSuch-v0"], "unknown env id"),
-    ("landing", ["--episodes", "0"], "--episodes"),
-    ("landing", ["no_such_option=1"], "rejects"),
-    ("landing", ["max_torque=-1"], "max_torque"),
-    ("landing", ["max_torque"], "key=value"),
 ]
 
 
