@@ -214,13 +214,13 @@ class Scene:
         timer = self.timer
         clock = time.perf_counter
         start = clock() if timer is not None else 0.0
-        arrays, norm2 = self._checked(state)
+        arrays = self._arrays(state)
         shape = arrays[0].shape
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
         ctx = StepContext(self.model, self.dt, State(*arrays), force, torque, self.forces)
         # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is renormalised.
-        ctx.q /= np.sqrt(norm2)[..., None]
+        ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
         if timer is None:
             run(self.pipeline, ctx)
         else:
@@ -240,12 +240,8 @@ class Scene:
         return new
 
     def _arrays(self, state) -> tuple[np.ndarray, ...]:
-        return self._checked(state)[0]
-
-    def _checked(self, state) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
         """The state's arrays as float64 (no copy when they already are), checked for type,
-        shape and unit quaternions, and |q|²; every failure is a ``ValueError`` naming the
-        field."""
+        shape and unit quaternions; every failure is a ``ValueError`` naming the field."""
         if not isinstance(state, State):
             raise ValueError(f"state must be a State, got {type(state).__name__}")
         arrays = []
@@ -267,15 +263,14 @@ class Scene:
                 + ", ".join(f"{k} {a.shape}" for k, a in zip(STATE_FIELDS, arrays, strict=True))
             )
         # |q|² − 1 ≈ 2 (|q| − 1); a zero, non-finite or overflowing |q|² fails the comparison.
-        norm2 = _norm2(q)
-        deviation = np.abs(norm2 - 1.0)
+        deviation = np.abs(_norm2(q) - 1.0)
         if not np.all(deviation <= 2 * ORIENTATION_TOLERANCE):
             raise ValueError(
                 f"state.orientation must hold finite unit quaternions (x, y, z, w) with |q| "
                 f"within {ORIENTATION_TOLERANCE:g} of 1; Scene.initial_state normalises any "
                 f"non-zero quaternion"
             )
-        return tuple(arrays), norm2
+        return tuple(arrays)
 
     def _diagnose(self, arrays):
         for name, arr in zip(STATE_FIELDS, arrays, strict=True):
@@ -338,8 +333,7 @@ def _norm2(q: np.ndarray) -> np.ndarray:
     """|q|² summed in a fixed order: a SIMD reduction's rounding can depend on the arrays'
     memory alignment, which would make a step's result depend on where its input lives."""
     with np.errstate(over="ignore"):  # an overflow to infinity is then rejected, not noted
-        sq = np.square(q)
-    return sq[..., 0] + sq[..., 1] + sq[..., 2] + sq[..., 3]
+        return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
 
 
 def _backend(value: str | None) -> str:
