@@ -39,6 +39,7 @@ from pathlib import Path
 from rigid_env import cli
 from rigid_env.cli import UsageError
 from rigid_env.files import atomic_open, write_text
+from rigid_env.sim import StageTimer
 
 from . import run_folder
 from .plan import DEFAULT_ENV, DEFAULT_EVAL_SEED, Plan, algo_class, make_plan, plan_of_record
@@ -74,24 +75,6 @@ class Throughput:
             "sim_share": round(self.sim_seconds / t, 4),
             "learner_us_per_step": round(1e6 * (t - self.env_seconds) / self.env_steps, 1),
         }
-
-
-class TimedScene:
-    """Forwards to a ``Scene`` and adds up the wall time of its ``step`` (measurement only)."""
-
-    def __init__(self, scene):
-        self._scene = scene
-        self.seconds = 0.0
-
-    def step(self, *args, **kwargs):
-        start = time.perf_counter()
-        try:
-            return self._scene.step(*args, **kwargs)
-        finally:
-            self.seconds += time.perf_counter() - start
-
-    def __getattr__(self, name):
-        return getattr(self._scene, name)
 
 
 @dataclass
@@ -225,8 +208,7 @@ def _make_env(plan: Plan):
 
     venv = make_vec(plan.env_id, plan.n_envs, **plan.env_kwargs)
     task = venv.unwrapped.task
-    timed = TimedScene(task.scene)
-    task.scene = timed
+    timed = task.scene.timer = StageTimer()  # the simulator's share of the wall time
     adapter = GymVectorToSB3(venv)
     return VecMonitor(adapter, info_keywords=("is_success",)), adapter, timed
 
@@ -391,7 +373,7 @@ class _Session:
                 cpu_seconds=cpu_seconds,
                 eval_seconds=self.eval_seconds,
                 env_seconds=self.adapter.env_seconds,
-                sim_seconds=self.timed.seconds,
+                sim_seconds=self.timed.step_seconds,
             ).as_dict()
         result = RunResult(
             out,

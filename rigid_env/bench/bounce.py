@@ -27,7 +27,6 @@ from functools import lru_cache
 import numpy as np
 
 from rigid_env import sim
-from rigid_env.sim.contacts import COMPATIBLE_INTEGRATORS
 from rigid_env.sim.rotation import quat_exp, quat_rotate, quat_to_matrix
 
 from . import reference
@@ -228,5 +227,4 @@ def window_start(drop: Drop, dt: float, steps: int) -> tuple[float, float]:
 
 
 def integrators() -> tuple[str, ...]:
-    """The integrators that carry contacts (the first bounce needs one)."""
-    return COMPATIBLE_INTEGRATORS
+    return sim.CONTACT_CAPABLE

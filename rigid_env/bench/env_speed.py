@@ -3,8 +3,9 @@
     python -m rigid_env.bench.env_speed RigidEnv/BoxLanding-v0 --num-envs 1024 --seconds 10
 
 Both envs run random actions (with their resets) for about ``--seconds`` each. The simulator's
-``Scene.step`` is timed from outside (wrapped), so the report separates the physics from the
-environment's own overhead (observation, reward, info, validation, resets). :func:`run` is the
+``Scene.step`` is timed by its public per-stage timer (``scene.timer = StageTimer()``), so the
+report separates the physics from the environment's own overhead (observation, reward, info,
+validation, resets). :func:`run` is the
 one env-speed loop of the benchmarks (``rigid_env.bench.speed`` uses it too).
 """
 
@@ -21,6 +22,7 @@ import numpy as np
 
 import rigid_env  # noqa: F401  (registers the ids)
 from rigid_env import cli
+from rigid_env.sim import StageTimer
 
 PROG = "python -m rigid_env.bench.env_speed"
 MIN_SECONDS = 0.01  # long enough for at least one step to be timed
@@ -45,19 +47,10 @@ class EnvRate:
         return self.physics_s / self.wall_s
 
 
-def _timed_scene(env: Any) -> list[float]:
-    """Wrap the task's ``scene.step`` so that its total time accumulates in the returned list."""
-    scene = env.unwrapped.task.scene
-    step, total = scene.step, [0.0]
-
-    def timed(*args: Any, **kwargs: Any) -> Any:
-        t = time.perf_counter()
-        out = step(*args, **kwargs)
-        total[0] += time.perf_counter() - t
-        return out
-
-    scene.step = timed
-    return total
+def _timed_scene(env: Any) -> StageTimer:
+    """Attach a public per-stage timer to the task's scene; its ``step_seconds`` is the physics."""
+    timer = env.unwrapped.task.scene.timer = StageTimer()
+    return timer
 
 
 def run(
@@ -92,7 +85,7 @@ def run(
         if not vector and (terminated or truncated):
             env.reset()
         count += 1
-    return EnvRate(count * n, time.perf_counter() - start, physics[0])
+    return EnvRate(count * n, time.perf_counter() - start, physics.step_seconds)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
