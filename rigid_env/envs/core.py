@@ -39,7 +39,7 @@ from .rendering import Frame, Renderer, View
 from .validation import action_batch, choice, positive_int
 
 
-def _is_seed(value) -> bool:
+def _is_seed(value: Any) -> bool:
     """A seed Gymnasium's ``seeding.np_random`` accepts: an int >= 0 (not a bool)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= 0)
 
@@ -298,7 +298,7 @@ class TaskVectorEnv(VectorEnv):
         self._prev_done[index] = False
         return self.task.observation(), self._info()
 
-    def _index(self, index) -> np.ndarray:
+    def _index(self, index: Any) -> np.ndarray:
         arr = np.atleast_1d(np.asarray(index))
         if (
             arr.ndim != 1
