@@ -177,6 +177,10 @@ def make_settings(args: argparse.Namespace) -> dict:
         raise ValueError(f"--cpus-per-trial must be positive, got {args.cpus_per_trial}")
     if args.max_failures < 0:
         raise ValueError(f"--max-failures must be at least 0, got {args.max_failures}")
+    try:
+        config.load(args.env, args.algo)
+    except ValueError as error:
+        raise ValueError(f"--env: {error}") from None
     sets = {k: parse_value(v) for k, v in parse_assignments(args.set, "--set").items()}
     search = parse_assignments(args.search, "--search")
     spaces = {k: parse_space(v) for k, v in search.items()}

@@ -1,0 +1,355 @@
+"""agents.sweep on Ray Tune, end to end with tiny trainings: a local sweep, a two-node cluster that
+loses its worker node, and an interrupted sweep resumed; and the command line's parsing.
+
+Every Ray process of these tests is started here, in its own process group and temp dir, and
+stopped here. The cluster's nodes listen on 127.0.0.2 (loopback; Ray replaces 127.0.0.1 by the
+machine's external address, not 127.0.0.2); a local instance is kept on loopback by Ray's own
+switch for single-machine use (RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents import evaluate, sweep
+
+ROOT = Path(__file__).resolve().parents[2]
+ID = "RigidEnv/Reorient-v0"
+EPISODES = 3
+# A few seconds of training per trial: 2 updates of a tiny net, 2 evaluations of 3 episodes.
+TINY = [
+    "n_timesteps=128",
+    "n_envs=2",
+    "n_steps=32",
+    "batch_size=32",
+    "eval_freq=64",
+    f"eval_episodes={EPISODES}",
+    "policy_kwargs.net_arch=[8]",
+]
+TIMEOUT = 600  # seconds for one sweep process: a hang fails the test instead of the CI run
+
+
+@pytest.fixture(scope="module")
+def ray_env():
+    """Environment of every Ray process here: no usage report, a token of our own (nothing
+    written to ~/.ray), no cluster inherited from the caller."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    env.update(
+        RAY_USAGE_STATS_ENABLED="0",
+        RAY_AUTH_MODE="token",
+        RAY_AUTH_TOKEN=secrets.token_hex(16),
+        PYTHONUNBUFFERED="1",
+    )
+    return env
+
+
+@pytest.fixture
+def local_env(ray_env):
+    tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
+    yield {**ray_env, "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_TMPDIR": tmp}
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def sweep_cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "agents.sweep", *args]
+
+
+def run(cmd: list[str], env: dict) -> subprocess.CompletedProcess:
+    proc = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    return proc
+
+
+def folders(out: Path) -> list[Path]:
+    return sorted(out.glob("runs/*/seed-*"))
+
+
+def attempts(folder: Path) -> list[dict]:
+    path = folder / sweep.ATTEMPTS_FILE
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def finished(folder: Path) -> dict | None:
+    path = folder / sweep.TRIAL_FILE
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def wait_for(condition, proc: subprocess.Popen, what: str, timeout: float = TIMEOUT):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        if proc.poll() is not None:
+            raise AssertionError(f"the sweep ended before {what}:\n{proc.stdout.read()[-4000:]}")
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_local_sweep_of_two_configs_and_two_seeds(tmp_path, local_env):
+    out = tmp_path / "sweep"
+    proc = run(
+        sweep_cmd(
+            "--env", ID, "--algo", "ppo", "--seeds", "2", "--search", "n_epochs=grid(1, 2)",
+            "--set", *TINY, "--num-cpus", "2", "--out", str(out),
+        ),
+        local_env,
+    )  # fmt: skip
+    assert "return IQM" in proc.stdout
+    results = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert results["complete"] and results["trials_finished"] == 4
+    assert len(results["configs"]) == 2
+    for name in ("learning_curves.png", "final_scores.png"):
+        assert (out / name).stat().st_size > 10_000, name
+
+    from stable_baselines3 import PPO
+
+    recomputed: dict[str, list] = {}
+    assert len(folders(out)) == 4
+    for folder in folders(out):
+        trial = finished(folder)
+        run_json = json.loads((folder / "run.json").read_text())
+        assert trial is not None and (folder / "monitor.csv").is_file()
+        assert len(attempts(folder)) == 1  # nothing failed, nothing ran twice
+        # The model is loadable and was trained with this trial's config: the searched n_epochs,
+        # the --set dotted key (net_arch [8] with the file's other policy_kwargs), this seed.
+        model = PPO.load(folder / "final_model.zip", device="cpu")
+        assert model.n_epochs == trial["config"]["n_epochs"]
+        assert model.policy.mlp_extractor.policy_net[0].out_features == 8
+        assert model.policy.net_arch == [8] and model.policy.log_std_init == -1.0
+        assert run_json["seed"] == trial["seed"] and model.seed == trial["seed"]
+        # The final model, evaluated again on the same seeded episodes, gives the figures the
+        # run recorded (deterministic policy, same seeds, same batch).
+        again = evaluate.evaluate(ID, str(folder / "final_model.zip"), EPISODES)
+        last = run_json["evaluations"][-1]
+        assert again["mean_return"] == pytest.approx(last["mean_return"], rel=1e-12)
+        assert again["success_rate"] == last["success_rate"]
+        recomputed.setdefault(trial["config_key"], []).append(
+            (trial["seed"], again["mean_return"], again["success_rate"])
+        )
+
+    # The aggregate is the statistics of those re-evaluations, seed by seed.
+    for entry in results["configs"]:
+        seeds, returns, success = zip(*sorted(recomputed[entry["config_key"]]), strict=True)
+        assert entry["seeds"] == [0, 1] == list(seeds)
+        r = entry["mean_return"]
+        assert r["mean"] == pytest.approx(np.mean(returns))
+        assert r["iqm"] == pytest.approx(np.mean(returns))  # 2 runs: nothing to trim
+        # Two runs: the percentile bootstrap interval is their range (tests/agents/test_aggregate).
+        assert r["mean_ci"] == pytest.approx([min(returns), max(returns)])
+        assert entry["success_rate"]["mean"] == pytest.approx(np.mean(success))
+        assert len(entry["curves"]["mean_return"]["env_steps"]) == 2  # evaluations at 64, 128
+
+
+def test_interrupted_sweep_resumes_without_rerunning_finished_trials(tmp_path, local_env):
+    out = tmp_path / "sweep"
+    cmd = sweep_cmd("--seeds", "2", "--set", *TINY, "--num-cpus", "1", "--out", str(out))
+    proc = subprocess.Popen(
+        cmd, env=local_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        # One CPU: the trials run one after the other. Interrupt while the second runs.
+        def one_done_one_running():
+            done = [f for f in folders(out) if finished(f)]
+            running = [f for f in folders(out) if attempts(f) and not finished(f)]
+            return (done[0], running[0]) if done and running else None
+
+        done, running = wait_for(one_done_one_running, proc, "one trial finished")
+        proc.send_signal(signal.SIGINT)
+        output = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode != 0, output[-4000:]
+    assert "--resume" in output
+    assert finished(running) is None
+    assert not json.loads((out / sweep.RESULTS_FILE).read_text())["complete"]
+
+    run(sweep_cmd("--resume", str(out), "--num-cpus", "1"), local_env)
+    assert len(attempts(done)) == 1  # finished before the interrupt: not run again
+    assert len(attempts(running)) == 2  # interrupted: run again from the start
+    assert finished(running) is not None
+    results = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert results["complete"] and results["configs"][0]["seeds"] == [0, 1]
+
+
+# ---------------------------------------------------------------- a two-node cluster
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.2", 0))
+        return s.getsockname()[1]
+
+
+def start_node(args: list[str], env: dict, log: Path) -> subprocess.Popen:
+    """``ray start ... --block`` in a new process group (the node's raylet and workers with it),
+    so stopping it stops exactly this node."""
+    with open(log, "w") as f:
+        proc = subprocess.Popen(
+            ["ray", "start", *args, "--block"],
+            env=env,
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+    deadline = time.monotonic() + 120
+    while "Ray runtime started" not in log.read_text():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            stop_node(proc)
+            raise AssertionError(f"ray start failed:\n{log.read_text()[-3000:]}")
+        time.sleep(0.2)
+    return proc
+
+
+def stop_node(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
+    """Signal the node's process group; SIGKILL what is left after a few seconds."""
+    for s in (sig, signal.SIGKILL):
+        try:
+            os.killpg(proc.pid, s)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            continue
+        if s == signal.SIGKILL:
+            return
+    # The group may outlive its leader by a moment: make sure nothing of it stays.
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+@pytest.fixture
+def cluster(ray_env, tmp_path):
+    """A head and a worker node on this machine, one CPU each; stopped whatever happens."""
+    tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
+    address = f"127.0.0.2:{free_port()}"
+    common = ["--num-cpus", "1", "--node-ip-address", "127.0.0.2"]
+    common += ["--object-store-memory", str(100 * 2**20), "--disable-usage-stats"]
+    nodes = []
+    try:
+        nodes.append(
+            start_node(
+                ["--head", "--port", address.split(":")[1], "--temp-dir", tmp,
+                 "--include-dashboard", "false", *common],
+                ray_env,
+                tmp_path / "head.log",
+            )
+        )  # fmt: skip
+        nodes.append(start_node(["--address", address, *common], ray_env, tmp_path / "worker.log"))
+        probe = (
+            "import json, ray; ray.init(address=%r);"
+            "print(json.dumps([(n['NodeID'], 'node:__internal_head__' in n['Resources'])"
+            " for n in ray.nodes() if n['Alive']]))" % address
+        )
+        listed = json.loads(run([sys.executable, "-c", probe], ray_env).stdout.splitlines()[-1])
+        assert len(listed) == 2, listed
+        head_id = next(node for node, is_head in listed if is_head)
+        worker_id = next(node for node, is_head in listed if not is_head)
+        yield {"address": address, "head": head_id, "worker": worker_id, "worker_proc": nodes[1]}
+    finally:
+        for proc in reversed(nodes):
+            stop_node(proc)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_env, cluster):
+    out = tmp_path / "sweep"
+    cmd = sweep_cmd(
+        "--seeds", "4", "--set", *TINY, "--address", cluster["address"], "--out", str(out)
+    )
+    proc = subprocess.Popen(
+        cmd, env=ray_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    worker = cluster["worker"]
+    try:
+        # Once a trial has finished on the worker node and another runs there, kill that node
+        # (SIGKILL to its raylet and workers, as a machine lost).
+        def one_done_one_running_on_worker():
+            done = [f for f in folders(out) if (finished(f) or {}).get("node_id") == worker]
+            running = [
+                f
+                for f in folders(out)
+                if not finished(f) and attempts(f) and attempts(f)[-1]["node_id"] == worker
+            ]
+            return running[0] if done and running else None
+
+        lost = wait_for(one_done_one_running_on_worker, proc, "a second trial on the worker")
+        stop_node(cluster["worker_proc"], signal.SIGKILL)
+        output = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, output[-4000:]
+
+    results = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert results["complete"] and results["configs"][0]["seeds"] == [0, 1, 2, 3]
+    nodes = {finished(f)["node_id"] for f in folders(out)}
+    assert nodes == {cluster["head"], worker}  # trials finished on both nodes
+    # The lost trial was retried, on the head (the only node left), and finished there.
+    tries = attempts(lost)
+    assert [t["node_id"] for t in tries] == [worker, cluster["head"]]
+    assert finished(lost)["node_id"] == cluster["head"]
+    assert (lost / "final_model.zip").is_file()
+    others = [f for f in folders(out) if f != lost]
+    assert all(len(attempts(f)) == 1 for f in others)
+
+
+# ---------------------------------------------------------------- the command line
+
+
+def test_search_spaces_and_values_are_parsed():
+    assert sweep.parse_space("loguniform(1e-4, 1e-3)") == ("loguniform", [1e-4, 1e-3])
+    assert sweep.parse_space("int(1, 4)") == ("int", [1, 4])
+    assert sweep.parse_space("choice([64, 64], [128, 128])") == ("choice", [[64, 64], [128, 128]])
+    assert sweep.parse_space("grid(lin_1e-3, 3e-4)") == ("grid", ["lin_1e-3", 3e-4])
+    assert sweep.parse_value("1e-4") == 1e-4 and sweep.parse_value("[8, 8]") == [8, 8]
+    assert sweep.parse_value("Tanh") == "Tanh"
+    for bad in ("normal(0, 1)", "uniform(1)", "uniform(2, 1)", "loguniform(0, 1)", "int(1.5, 3)"):
+        with pytest.raises(ValueError, match="--search"):
+            sweep.parse_space(bad)
+
+
+def test_dotted_keys_keep_the_rest_of_the_dict():
+    block = sweep.raw_block(ID, "ppo")
+    merged = sweep.expand({"policy_kwargs.net_arch": [8], "gamma": 0.9}, block)
+    assert merged["gamma"] == 0.9
+    assert merged["policy_kwargs"] == {**block["policy_kwargs"], "net_arch": [8]}
+    assert block["policy_kwargs"]["net_arch"] == [128, 128]  # the file's block is not changed
+
+
+def test_bad_settings_are_refused_before_ray_starts(tmp_path, capsys):
+    base = ["--out", str(tmp_path / "s")]
+    for args, message in (
+        (["--set", "no_such_key=1"], "--set"),
+        (["--set", "seed=3"], "--seeds"),
+        (["--search", "gamma=grid(0.9, 0.99)", "learning_rate=uniform(1e-4, 1e-3)"], "grid"),
+        (["--search", "gamma=grid(0.9, 0.99)", "--samples", "3"], "--samples"),
+        (["--seeds", "0"], "--seeds"),
+        (["--algo", "dqn"], "--algo"),
+        (["--resume", str(tmp_path)], "--resume"),
+        (["--resume", str(tmp_path), "--seeds", "2"], "--resume"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            sweep.main(args if "--resume" in args else args + base)
+        assert exit_info.value.code == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()  # nothing written for a refused sweep
