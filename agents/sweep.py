@@ -383,11 +383,24 @@ def run_tune(settings: dict, sweep_dir: Path, resume: bool):
     return tuner.fit()
 
 
-def load_trials(sweep_dir: Path) -> list[dict]:
-    """Finished trials of a sweep folder: ``trial.json`` plus the evaluations of ``run.json``."""
+def finished_trial_ids(sweep_dir: Path) -> set[str]:
+    """Ids of the trials Ray Tune's saved experiment state calls finished (TERMINATED). A trial
+    stopped by an interrupt may have written its folder without Tune recording it: it is run
+    again on resume, so it does not count."""
+    from ray import tune
+
+    analysis = tune.ExperimentAnalysis(str(Path(sweep_dir) / EXPERIMENT))
+    return {t.trial_id for t in analysis.trials if t.status == "TERMINATED"}
+
+
+def load_trials(sweep_dir: Path, trial_ids: set[str]) -> list[dict]:
+    """The finished trials ``trial_ids`` of a sweep folder: each ``trial.json`` plus the
+    evaluations of its ``run.json``."""
     trials = []
     for path in sorted(Path(sweep_dir).glob(f"runs/*/seed-*/{TRIAL_FILE}")):
         trial = json.loads(path.read_text())
+        if trial["trial_id"] not in trial_ids:
+            continue
         run = json.loads((path.parent / "run.json").read_text())
         trials.append({**trial, "evaluations": run["evaluations"], "run_dir": str(path.parent)})
     return trials
@@ -397,7 +410,7 @@ def summarize_sweep(settings: dict, sweep_dir: Path, expected: int) -> dict:
     """Aggregate the finished trials; write results.json and the two figures."""
     from . import stats, sweep_plots
 
-    trials = load_trials(sweep_dir)
+    trials = load_trials(sweep_dir, finished_trial_ids(sweep_dir))
     results = stats.aggregate(trials)
     summary = {
         "env_id": settings["env_id"],

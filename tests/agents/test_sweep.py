@@ -176,8 +176,10 @@ def test_interrupted_sweep_resumes_without_rerunning_finished_trials(tmp_path, l
             proc.wait()
     assert proc.returncode != 0, output[-4000:]
     assert "--resume" in output
-    assert finished(running) is None
-    assert not json.loads((out / sweep.RESULTS_FILE).read_text())["complete"]
+    # The interrupted trial may have written its folder while Tune was stopping it; Tune did not
+    # record it as finished, so neither does the aggregate.
+    partial = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert not partial["complete"] and partial["trials_finished"] == 1
 
     run(sweep_cmd("--resume", str(out), "--num-cpus", "1"), local_env)
     assert len(attempts(done)) == 1  # finished before the interrupt: not run again
