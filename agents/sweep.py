@@ -7,8 +7,9 @@
 
 Each trial calls :func:`agents.train.train` and writes its own run folder
 ``DIR/runs/<config>/seed-<k>/`` (``final_model.zip``, ``best_model.zip``, ``monitor.csv``,
-``run.json`` as ``agents.train`` writes them; ``trial.json``: config, seed, Ray node; and
-``attempts.jsonl``: one line per start of the trial, so a retry shows). The sweep folder also gets
+``run.json`` as ``agents.train`` writes them; ``trial.json``: config, seed, Ray node), and
+``DIR/runs/<config>/attempts/seed-<k>.jsonl``: one line per start of the trial, so a retry
+shows (a retried trial starts its run folder afresh). The sweep folder also gets
 ``sweep.json`` (the settings), ``tune/`` (Ray Tune's experiment state), ``results.json`` (per
 config: mean and interquartile mean of the final evaluation return and success rate over seeds,
 with 95 % bootstrap intervals; :mod:`agents.stats`), ``learning_curves.png`` and
@@ -37,6 +38,7 @@ import inspect
 import json
 import os
 import re
+import shutil
 import socket
 import sys
 import time
@@ -49,7 +51,6 @@ from . import config
 SETTINGS_FILE = "sweep.json"
 RESULTS_FILE = "results.json"
 TRIAL_FILE = "trial.json"
-ATTEMPTS_FILE = "attempts.jsonl"
 EXPERIMENT = "tune"  # Ray Tune's experiment folder inside the sweep folder
 METRICS = ("mean_return", "success_rate")
 SAMPLED = ("uniform", "loguniform", "int", "choice")
@@ -261,6 +262,17 @@ def write_json(path: Path, obj) -> None:
     os.replace(tmp, path)
 
 
+def run_dir(sweep_dir: str | Path, key: str, seed: int) -> Path:
+    """The run folder of one trial, as ``agents.train`` writes it (plus ``trial.json``)."""
+    return Path(sweep_dir) / "runs" / key / f"seed-{seed}"
+
+
+def attempts_path(sweep_dir: str | Path, key: str, seed: int) -> Path:
+    """One JSON line per start of the trial (node, process, time): kept outside the run folder,
+    which a new attempt starts empty."""
+    return Path(sweep_dir) / "runs" / key / "attempts" / f"seed-{seed}.jsonl"
+
+
 def trial_params(trial_config: dict, settings: dict) -> tuple[dict, int]:
     """(searched values, seed) of a trial's Tune config."""
     params = {k: v for k, v in trial_config.items() if k not in ("seed", "__trial_index__")}
@@ -284,8 +296,11 @@ def run_trial(trial_config: dict, settings: dict) -> None:
 
     params, seed = trial_params(trial_config, settings)
     key = config_key(params)
-    out = Path(settings["sweep_dir"]) / "runs" / key / f"seed-{seed}"
-    out.mkdir(parents=True, exist_ok=True)
+    out = run_dir(settings["sweep_dir"], key, seed)
+    log_path = attempts_path(settings["sweep_dir"], key, seed)
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    if out.exists():  # left by an attempt that died: this one starts the run afresh
+        shutil.rmtree(out)
     node_id = ray.get_runtime_context().get_node_id()
     started = {
         "trial_id": tune.get_context().get_trial_id(),
@@ -294,7 +309,7 @@ def run_trial(trial_config: dict, settings: dict) -> None:
         "pid": os.getpid(),
         "time": time.time(),
     }
-    with open(out / ATTEMPTS_FILE, "a") as f:
+    with open(log_path, "a") as f:
         f.write(json.dumps(started) + "\n")
         f.flush()
         os.fsync(f.fileno())

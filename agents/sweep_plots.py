@@ -75,6 +75,8 @@ def final_scores(results: list[dict], path: Path, title: str) -> Path:
             if np.isfinite(low):
                 ax.barh(y, high - low, left=low, height=0.6, color=color, alpha=0.6)
             ax.plot([scale * s[stat]] * 2, [y - 0.3, y + 0.3], color="k", lw=2)
+        if key == "success_rate":
+            ax.set_xlim(-2, 102)
         ax.set_yticks(range(rows), labels if ax is axes[0] else [""] * rows)
         ax.set_ylim(-0.6, rows - 0.4)
         ax.set_title(f"{'IQM' if stat == 'iqm' else 'mean'} {ylabel}", fontsize="medium")

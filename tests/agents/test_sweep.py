@@ -9,6 +9,7 @@ switch for single-machine use (RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import secrets
@@ -74,11 +75,12 @@ def run(cmd: list[str], env: dict) -> subprocess.CompletedProcess:
 
 
 def folders(out: Path) -> list[Path]:
-    return sorted(out.glob("runs/*/seed-*"))
+    """Run folders of the trials that have started."""
+    return sorted(p.parent.parent / p.stem for p in out.glob("runs/*/attempts/seed-*.jsonl"))
 
 
 def attempts(folder: Path) -> list[dict]:
-    path = folder / sweep.ATTEMPTS_FILE
+    path = folder.parent / "attempts" / f"{folder.name}.jsonl"  # sweep.attempts_path
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
@@ -232,10 +234,8 @@ def stop_node(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
         if s == signal.SIGKILL:
             return
     # The group may outlive its leader by a moment: make sure nothing of it stays.
-    try:
+    with contextlib.suppress(ProcessLookupError):
         os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
 
 
 @pytest.fixture
@@ -257,9 +257,9 @@ def cluster(ray_env, tmp_path):
         )  # fmt: skip
         nodes.append(start_node(["--address", address, *common], ray_env, tmp_path / "worker.log"))
         probe = (
-            "import json, ray; ray.init(address=%r);"
+            f"import json, ray; ray.init(address={address!r});"
             "print(json.dumps([(n['NodeID'], 'node:__internal_head__' in n['Resources'])"
-            " for n in ray.nodes() if n['Alive']]))" % address
+            " for n in ray.nodes() if n['Alive']]))"
         )
         listed = json.loads(run([sys.executable, "-c", probe], ray_env).stdout.splitlines()[-1])
         assert len(listed) == 2, listed
