@@ -57,7 +57,7 @@ def ray_env():
     return env
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def local_env(ray_env):
     tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
     yield {**ray_env, "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_TMPDIR": tmp}
@@ -101,16 +101,71 @@ def wait_for(condition, proc: subprocess.Popen, what: str, timeout: float = TIME
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def test_local_sweep_of_two_configs_and_two_seeds(tmp_path, local_env):
-    out = tmp_path / "sweep"
-    proc = run(
-        sweep_cmd(
-            "--env", ID, "--algo", "ppo", "--seeds", "2", "--search", "n_epochs=grid(1, 2)",
-            "--set", *TINY, "--num-cpus", "2", "--out", str(out),
-        ),
-        local_env,
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory, local_env):
+    """A local sweep of 2 configs x 2 seeds on 2 CPUs, interrupted (SIGINT, as Ctrl-C) once a
+    trial has finished and another runs, then resumed to the end. One sweep serves the resume
+    test and the local-sweep test (a Ray start and cold trial processes cost tens of seconds)."""
+    out = tmp_path_factory.mktemp("local") / "sweep"
+    cmd = sweep_cmd(
+        "--env", ID, "--algo", "ppo", "--seeds", "2", "--search", "n_epochs=grid(1, 2)",
+        "--set", *TINY, "--num-cpus", "2", "--out", str(out),
     )  # fmt: skip
-    assert "return IQM" in proc.stdout
+    proc = subprocess.Popen(
+        cmd, env=local_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+
+        def one_done_one_running():
+            done = [f for f in folders(out) if finished(f)]
+            running = [f for f in folders(out) if not finished(f)]
+            return done and running
+
+        wait_for(one_done_one_running, proc, "a trial finished while another runs")
+        proc.send_signal(signal.SIGINT)
+        interrupted = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    code = proc.returncode
+    started = folders(out)  # trials that began before the sweep stopped
+    partial = json.loads((out / sweep.RESULTS_FILE).read_text())
+    resumed = run(sweep_cmd("--resume", str(out), "--num-cpus", "2"), local_env)
+    return {
+        "out": out,
+        "code": code,
+        "interrupted": interrupted,
+        "started": started,
+        "partial": partial,
+        "resumed": resumed.stdout,
+    }
+
+
+def test_interrupted_sweep_resumes_without_rerunning_finished_trials(local_sweep):
+    out, partial = local_sweep["out"], local_sweep["partial"]
+    assert local_sweep["code"] != 0, local_sweep["interrupted"][-4000:]
+    assert f"--resume {out}" in local_sweep["interrupted"]
+    assert not partial["complete"]
+    # Finished before the interrupt, as Ray Tune's saved state says (an interrupted trial may
+    # have written its folder while Tune was stopping it: Tune runs it again, so it does not count).
+    done = {
+        out / "runs" / e["config_key"] / f"seed-{f['seed']}"
+        for e in partial["configs"]
+        for f in e["final"]
+    }
+    stopped = set(local_sweep["started"]) - done
+    assert done and stopped and partial["trials_finished"] == len(done)
+    for folder in folders(out):
+        assert finished(folder) is not None
+        # Finished ones were not run again, stopped ones ran again, the others ran once.
+        assert len(attempts(folder)) == (2 if folder in stopped else 1), folder
+    assert len(folders(out)) == 4
+
+
+def test_local_sweep_of_two_configs_and_two_seeds(local_sweep):
+    out = local_sweep["out"]
+    assert "return IQM" in local_sweep["resumed"]
     results = json.loads((out / sweep.RESULTS_FILE).read_text())
     assert results["complete"] and results["trials_finished"] == 4
     assert len(results["configs"]) == 2
@@ -125,7 +180,6 @@ def test_local_sweep_of_two_configs_and_two_seeds(tmp_path, local_env):
         trial = finished(folder)
         run_json = json.loads((folder / "run.json").read_text())
         assert trial is not None and (folder / "monitor.csv").is_file()
-        assert len(attempts(folder)) == 1  # nothing failed, nothing ran twice
         # The model is loadable and was trained with this trial's config: the searched n_epochs,
         # the --set dotted key (net_arch [8] with the file's other policy_kwargs), this seed.
         model = PPO.load(folder / "final_model.zip", device="cpu")
@@ -154,41 +208,6 @@ def test_local_sweep_of_two_configs_and_two_seeds(tmp_path, local_env):
         assert r["mean_ci"] == pytest.approx([min(returns), max(returns)])
         assert entry["success_rate"]["mean"] == pytest.approx(np.mean(success))
         assert len(entry["curves"]["mean_return"]["env_steps"]) == 2  # evaluations at 64, 128
-
-
-def test_interrupted_sweep_resumes_without_rerunning_finished_trials(tmp_path, local_env):
-    out = tmp_path / "sweep"
-    cmd = sweep_cmd("--seeds", "2", "--set", *TINY, "--num-cpus", "1", "--out", str(out))
-    proc = subprocess.Popen(
-        cmd, env=local_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-    )
-    try:
-        # One CPU: the trials run one after the other. Interrupt while the second runs.
-        def one_done_one_running():
-            done = [f for f in folders(out) if finished(f)]
-            running = [f for f in folders(out) if attempts(f) and not finished(f)]
-            return (done[0], running[0]) if done and running else None
-
-        done, running = wait_for(one_done_one_running, proc, "one trial finished")
-        proc.send_signal(signal.SIGINT)
-        output = proc.communicate(timeout=TIMEOUT)[0]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode != 0, output[-4000:]
-    assert "--resume" in output
-    # The interrupted trial may have written its folder while Tune was stopping it; Tune did not
-    # record it as finished, so neither does the aggregate.
-    partial = json.loads((out / sweep.RESULTS_FILE).read_text())
-    assert not partial["complete"] and partial["trials_finished"] == 1
-
-    run(sweep_cmd("--resume", str(out), "--num-cpus", "1"), local_env)
-    assert len(attempts(done)) == 1  # finished before the interrupt: not run again
-    assert len(attempts(running)) == 2  # interrupted: run again from the start
-    assert finished(running) is not None
-    results = json.loads((out / sweep.RESULTS_FILE).read_text())
-    assert results["complete"] and results["configs"][0]["seeds"] == [0, 1]
 
 
 # ---------------------------------------------------------------- a two-node cluster
