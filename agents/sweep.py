@@ -251,12 +251,23 @@ def param_space(settings: dict) -> tuple[dict, bool]:
 # ---------------------------------------------------------------- one trial (on a Ray worker)
 
 
+def _strict(obj):
+    """NaN (no interval from one seed) as JSON null, which every JSON reader accepts."""
+    if isinstance(obj, float) and obj != obj:
+        return None
+    if isinstance(obj, dict):
+        return {k: _strict(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_strict(v) for v in obj]
+    return obj
+
+
 def write_json(path: Path, obj) -> None:
     """Write JSON atomically: a reader sees the old file or the new one, never half of one."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     with open(tmp, "w") as f:
-        json.dump(obj, f, indent=2, default=repr)
+        json.dump(_strict(obj), f, indent=2, default=repr, allow_nan=False)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)

@@ -293,9 +293,11 @@ def cluster(ray_env, tmp_path):
 
 def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_env, cluster):
     out = tmp_path / "sweep"
+    # A sampled search (Optuna through Tune's Repeater): one config, run with both seeds.
     cmd = sweep_cmd(
-        "--seeds", "2", "--set", *TINY, "--address", cluster["address"], "--out", str(out)
-    )
+        "--seeds", "2", "--set", *TINY, "--search", "learning_rate=loguniform(1e-4, 1e-3)",
+        "--samples", "1", "--address", cluster["address"], "--out", str(out),
+    )  # fmt: skip
     proc = subprocess.Popen(
         cmd, env=ray_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
@@ -318,7 +320,9 @@ def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_
     assert proc.returncode == 0, output[-4000:]
 
     results = json.loads((out / sweep.RESULTS_FILE).read_text())
-    assert results["complete"] and results["configs"][0]["seeds"] == [0, 1]
+    assert results["complete"] and len(results["configs"]) == 1
+    (entry,) = results["configs"]
+    assert entry["seeds"] == [0, 1] and 1e-4 <= entry["config"]["learning_rate"] <= 1e-3
     # The lost trial was retried by Tune on the head (the only node left) and finished there;
     # the other ran once, on the head.
     assert [t["node_id"] for t in attempts(lost)] == [worker, head]
@@ -341,6 +345,28 @@ def test_search_spaces_and_values_are_parsed():
     for bad in ("normal(0, 1)", "uniform(1)", "uniform(2, 1)", "loguniform(0, 1)", "int(1.5, 3)"):
         with pytest.raises(ValueError, match="--search"):
             sweep.parse_space(bad)
+
+
+def test_trials_map_to_configs_and_seeds():
+    from ray import tune
+
+    settings = {
+        "search": {"net": "choice([8], [16, 16])", "gamma": "grid(0.9, 0.99)"},
+        "seeds": [0, 1, 2],
+    }
+    space, sampled = sweep.param_space({**settings, "search": {"gamma": "grid(0.9, 0.99)"}})
+    assert not sampled and space["seed"] == tune.grid_search([0, 1, 2])
+    space, sampled = sweep.param_space({**settings, "search": {"net": "choice([8], [16, 16])"}})
+    assert sampled and "seed" not in space  # seeds come from the Repeater's trial index
+    # Optuna's categorical choices must be scalars: lists travel as YAML text and come back.
+    assert sorted(space["net"].categories) == ["[16, 16]", "[8]"]
+    params, seed = sweep.trial_params({"net": "[16, 16]", "__trial_index__": 2}, settings)
+    assert params == {"net": [16, 16]} and seed == 2
+    params, seed = sweep.trial_params({"gamma": 0.99, "seed": 1}, settings)
+    assert params == {"gamma": 0.99} and seed == 1
+    # One folder per config, the same for every seed, different between configs.
+    assert sweep.config_key({"gamma": 0.99}) == sweep.config_key({"gamma": 0.99})
+    assert sweep.config_key({"gamma": 0.99}) != sweep.config_key({"gamma": 0.9})
 
 
 def test_dotted_keys_keep_the_rest_of_the_dict():
