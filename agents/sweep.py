@@ -593,7 +593,7 @@ def main(argv=None) -> int:
     summary = summarize_sweep(settings, sweep_dir, expected)
     if summary["configs"]:
         print_results(summary)
-    print(f"results: {sweep_dir / RESULTS_FILE}, learning_curves.png, final_scores.png", flush=True)
+        print(f"results: {sweep_dir / RESULTS_FILE}, learning_curves.png, final_scores.png")
     if not summary["complete"]:
         failed = [str(r.error).split("\n")[0] for r in grid if r.error is not None]
         print(
