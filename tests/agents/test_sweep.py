@@ -1,5 +1,5 @@
-"""agents.sweep on Ray Tune, end to end with tiny trainings: a local sweep, a two-node cluster that
-loses its worker node, and an interrupted sweep resumed; and the command line's parsing.
+"""agents.sweep on Ray Tune, end to end with tiny trainings: a local sweep interrupted and resumed,
+a two-node cluster that loses its worker node; and the command line's parsing.
 
 Every Ray process of these tests is started here, in its own process group and temp dir, and
 stopped here. The cluster's nodes listen on 127.0.0.2 (loopback; Ray replaces 127.0.0.1 by the
@@ -40,6 +40,7 @@ TINY = [
     f"eval_episodes={EPISODES}",
     "policy_kwargs.net_arch=[8]",
 ]
+RAY = shutil.which("ray", path=str(Path(sys.executable).parent)) or "ray"  # this Python's Ray
 TIMEOUT = 600  # seconds for one sweep process: a hang fails the test instead of the CI run
 
 
@@ -224,7 +225,7 @@ def start_node(args: list[str], env: dict, log: Path) -> subprocess.Popen:
     so stopping it stops exactly this node."""
     with open(log, "w") as f:
         proc = subprocess.Popen(
-            ["ray", "start", *args, "--block"],
+            [RAY, "start", *args, "--block"],
             env=env,
             stdout=f,
             stderr=subprocess.STDOUT,
