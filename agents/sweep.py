@@ -428,7 +428,14 @@ def load_trials(sweep_dir: Path, trial_ids: set[str]) -> list[dict]:
         if trial["trial_id"] not in trial_ids:
             continue
         run = json.loads((path.parent / "run.json").read_text())
-        trials.append({**trial, "evaluations": run["evaluations"], "run_dir": str(path.parent)})
+        trials.append(
+            {
+                **trial,
+                "evaluations": run["evaluations"],
+                "analytic": run.get("analytic"),
+                "run_dir": str(path.parent),
+            }
+        )
     return trials
 
 
@@ -450,12 +457,16 @@ def summarize_sweep(settings: dict, sweep_dir: Path, expected: int) -> dict:
         "score": "final evaluation (the last periodic one, of the final model)",
         "confidence": stats.CONFIDENCE,
         "bootstrap": f"percentile, {stats.RESAMPLES} resamples over seeds",
+        # The analytic controller on the same evaluation episodes (agents.train measures it).
+        "analytic": next((t["analytic"] for t in trials if t.get("analytic")), None),
         "configs": results,
     }
     write_json(sweep_dir / RESULTS_FILE, summary)
     if results:
         title = f"{settings['algo'].upper()} on {settings['env_id']}"
-        sweep_plots.learning_curves(results, sweep_dir / "learning_curves.png", title)
+        sweep_plots.learning_curves(
+            results, sweep_dir / "learning_curves.png", title, summary["analytic"]
+        )
         sweep_plots.final_scores(results, sweep_dir / "final_scores.png", title)
     return summary
 

@@ -30,9 +30,12 @@ def _short(value) -> str:
     return f"{value:.3g}" if isinstance(value, float) else str(value)
 
 
-def learning_curves(results: list[dict], path: Path, title: str) -> Path:
+def learning_curves(
+    results: list[dict], path: Path, title: str, analytic: dict | None = None
+) -> Path:
     """Return and success rate against env steps: per config the mean over seeds and the
-    bootstrap interval of that mean as a band."""
+    bootstrap interval of that mean as a band; ``analytic`` (an evaluation summary) as a dashed
+    line."""
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 6), constrained_layout=True)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, entry in enumerate(results):
@@ -46,6 +49,9 @@ def learning_curves(results: list[dict], path: Path, title: str) -> Path:
             if np.all(np.isfinite(low)):
                 ax.fill_between(steps, low, high, color=color, alpha=0.2, lw=0)
             ax.set_ylabel(ylabel)
+    if analytic:
+        for ax, (key, _, scale) in zip(axes, METRICS, strict=True):
+            ax.axhline(scale * analytic[key], ls="--", color="k", label="analytic controller")
     axes[1].set_ylim(-2, 102)
     axes[1].set_xlabel("environment steps")
     axes[0].legend(loc="lower right", fontsize="small")
