@@ -241,21 +241,16 @@ def start_node(args: list[str], env: dict, log: Path) -> subprocess.Popen:
 
 
 def stop_node(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
-    """Signal the node's process group; SIGKILL what is left after a few seconds."""
-    for s in (sig, signal.SIGKILL):
-        try:
-            os.killpg(proc.pid, s)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            continue
-        if s == signal.SIGKILL:
-            return
-    # The group may outlive its leader by a moment: make sure nothing of it stays.
+    """Signal the node's process group (its ``ray start``, raylet, workers and, on the head,
+    GCS); SIGKILL what is left after a few seconds."""
     with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, sig)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=10)
+        # The group may outlive its leader: make sure nothing of it stays.
         os.killpg(proc.pid, signal.SIGKILL)
+    if proc.poll() is None:
+        proc.wait()
 
 
 @pytest.fixture
@@ -288,7 +283,7 @@ def cluster(ray_env, tmp_path):
         yield {"address": address, "head": head_id, "worker": worker_id, "worker_proc": nodes[1]}
     finally:
         for proc in reversed(nodes):
-            stop_node(proc)
+            stop_node(proc, signal.SIGKILL)  # a throwaway cluster: nothing to shut down gently
         shutil.rmtree(tmp, ignore_errors=True)
 
 
