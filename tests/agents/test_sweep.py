@@ -1,0 +1,392 @@
+"""agents.sweep on Ray Tune, end to end with tiny trainings: a local sweep interrupted and resumed,
+a two-node cluster that loses its worker node; and the command line's parsing.
+
+Every Ray process of these tests is started here, in its own process group and temp dir, and
+stopped here. The cluster's nodes listen on 127.0.0.2 (loopback; Ray replaces 127.0.0.1 by the
+machine's external address, not 127.0.0.2); a local instance is kept on loopback by Ray's own
+switch for single-machine use (RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import secrets
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents import evaluate, sweep
+
+ROOT = Path(__file__).resolve().parents[2]
+ID = "RigidEnv/Reorient-v0"
+EPISODES = 3
+# A few seconds of training per trial: 2 updates of a tiny net, 2 evaluations of 3 episodes.
+TINY = [
+    "n_timesteps=128",
+    "n_envs=2",
+    "n_steps=32",
+    "batch_size=32",
+    "eval_freq=64",
+    f"eval_episodes={EPISODES}",
+    "policy_kwargs.net_arch=[8]",
+]
+RAY = shutil.which("ray", path=str(Path(sys.executable).parent)) or "ray"  # this Python's Ray
+TIMEOUT = 600  # seconds for one sweep process: a hang fails the test instead of the CI run
+
+
+@pytest.fixture(scope="module")
+def ray_env():
+    """Environment of every Ray process here: no usage report, a token of our own (nothing
+    written to ~/.ray), no cluster inherited from the caller."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    env.update(
+        RAY_USAGE_STATS_ENABLED="0",
+        RAY_AUTH_MODE="token",
+        RAY_AUTH_TOKEN=secrets.token_hex(16),
+        PYTHONUNBUFFERED="1",
+    )
+    return env
+
+
+@pytest.fixture(scope="module")
+def local_env(ray_env):
+    tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
+    yield {**ray_env, "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_TMPDIR": tmp}
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def sweep_cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "agents.sweep", *args]
+
+
+def run(cmd: list[str], env: dict) -> subprocess.CompletedProcess:
+    proc = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    return proc
+
+
+def folders(out: Path) -> list[Path]:
+    """Run folders of the trials that have started."""
+    return sorted(p.parent.parent / p.stem for p in out.glob("runs/*/attempts/seed-*.jsonl"))
+
+
+def attempts(folder: Path) -> list[dict]:
+    path = folder.parent / "attempts" / f"{folder.name}.jsonl"  # sweep.attempts_path
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def finished(folder: Path) -> dict | None:
+    path = folder / sweep.TRIAL_FILE
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def wait_for(condition, proc: subprocess.Popen, what: str, timeout: float = TIMEOUT):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        if proc.poll() is not None:
+            raise AssertionError(f"the sweep ended before {what}:\n{proc.stdout.read()[-4000:]}")
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory, local_env):
+    """A local sweep of 2 configs x 2 seeds on 2 CPUs, interrupted (SIGINT, as Ctrl-C) once a
+    trial has finished and another runs, then resumed to the end. One sweep serves the resume
+    test and the local-sweep test (a Ray start and cold trial processes cost tens of seconds)."""
+    out = tmp_path_factory.mktemp("local") / "sweep"
+    cmd = sweep_cmd(
+        "--env", ID, "--algo", "ppo", "--seeds", "2", "--search", "n_epochs=grid(1, 2)",
+        "--set", *TINY, "--num-cpus", "2", "--out", str(out),
+    )  # fmt: skip
+    proc = subprocess.Popen(
+        cmd, env=local_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+
+        def one_done_one_running():
+            done = [f for f in folders(out) if finished(f)]
+            running = [f for f in folders(out) if not finished(f)]
+            return done and running
+
+        wait_for(one_done_one_running, proc, "a trial finished while another runs")
+        proc.send_signal(signal.SIGINT)
+        interrupted = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    code = proc.returncode
+    started = folders(out)  # trials that began before the sweep stopped
+    partial = json.loads((out / sweep.RESULTS_FILE).read_text())
+    resumed = run(sweep_cmd("--resume", str(out), "--num-cpus", "2"), local_env)
+    return {
+        "out": out,
+        "code": code,
+        "interrupted": interrupted,
+        "started": started,
+        "partial": partial,
+        "resumed": resumed.stdout,
+    }
+
+
+def test_interrupted_sweep_resumes_without_rerunning_finished_trials(local_sweep):
+    out, partial = local_sweep["out"], local_sweep["partial"]
+    assert local_sweep["code"] != 0, local_sweep["interrupted"][-4000:]
+    assert f"--resume {out}" in local_sweep["interrupted"]
+    assert not partial["complete"]
+    # Finished before the interrupt, as Ray Tune's saved state says (an interrupted trial may
+    # have written its folder while Tune was stopping it: Tune runs it again, so it does not count).
+    done = {
+        out / "runs" / e["config_key"] / f"seed-{f['seed']}"
+        for e in partial["configs"]
+        for f in e["final"]
+    }
+    stopped = set(local_sweep["started"]) - done
+    assert done and stopped and partial["trials_finished"] == len(done)
+    for folder in folders(out):
+        assert finished(folder) is not None
+        # Finished ones were not run again, stopped ones ran again, the others ran once.
+        assert len(attempts(folder)) == (2 if folder in stopped else 1), folder
+    assert len(folders(out)) == 4
+
+
+def test_local_sweep_of_two_configs_and_two_seeds(local_sweep):
+    out = local_sweep["out"]
+    assert "return IQM" in local_sweep["resumed"]
+    results = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert results["complete"] and results["trials_finished"] == 4
+    assert len(results["configs"]) == 2
+    for name in ("learning_curves.png", "final_scores.png"):
+        assert (out / name).stat().st_size > 10_000, name
+
+    from stable_baselines3 import PPO
+
+    recomputed: dict[str, list] = {}
+    assert len(folders(out)) == 4
+    for folder in folders(out):
+        trial = finished(folder)
+        run_json = json.loads((folder / "run.json").read_text())
+        assert trial is not None and (folder / "monitor.csv").is_file()
+        # The model is loadable and was trained with this trial's config: the searched n_epochs,
+        # the --set dotted key (net_arch [8] with the file's other policy_kwargs), this seed.
+        model = PPO.load(folder / "final_model.zip", device="cpu")
+        assert model.n_epochs == trial["config"]["n_epochs"]
+        assert model.policy.mlp_extractor.policy_net[0].out_features == 8
+        assert model.policy.net_arch == [8] and model.policy.log_std_init == -1.0
+        assert run_json["seed"] == trial["seed"] and model.seed == trial["seed"]
+        # The final model, evaluated again on the same seeded episodes, gives the figures the
+        # run recorded (deterministic policy, same seeds, same batch).
+        again = evaluate.evaluate(ID, str(folder / "final_model.zip"), EPISODES)
+        last = run_json["evaluations"][-1]
+        assert again["mean_return"] == pytest.approx(last["mean_return"], rel=1e-12)
+        assert again["success_rate"] == last["success_rate"]
+        recomputed.setdefault(trial["config_key"], []).append(
+            (trial["seed"], again["mean_return"], again["success_rate"])
+        )
+
+    # The aggregate is the statistics of those re-evaluations, seed by seed.
+    for entry in results["configs"]:
+        seeds, returns, success = zip(*sorted(recomputed[entry["config_key"]]), strict=True)
+        assert entry["seeds"] == [0, 1] == list(seeds)
+        r = entry["mean_return"]
+        assert r["mean"] == pytest.approx(np.mean(returns))
+        assert r["iqm"] == pytest.approx(np.mean(returns))  # 2 runs: nothing to trim
+        # Two runs: the percentile bootstrap interval is their range (tests/agents/test_aggregate).
+        assert r["mean_ci"] == pytest.approx([min(returns), max(returns)])
+        assert entry["success_rate"]["mean"] == pytest.approx(np.mean(success))
+        assert len(entry["curves"]["mean_return"]["env_steps"]) == 2  # evaluations at 64, 128
+
+
+# ---------------------------------------------------------------- a two-node cluster
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.2", 0))
+        return s.getsockname()[1]
+
+
+def start_node(args: list[str], env: dict, log: Path) -> subprocess.Popen:
+    """``ray start ... --block`` in a new process group (the node's raylet and workers with it),
+    so stopping it stops exactly this node."""
+    with open(log, "w") as f:
+        proc = subprocess.Popen(
+            [RAY, "start", *args, "--block"],
+            env=env,
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+    deadline = time.monotonic() + 120
+    while "Ray runtime started" not in log.read_text():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            stop_node(proc)
+            raise AssertionError(f"ray start failed:\n{log.read_text()[-3000:]}")
+        time.sleep(0.2)
+    return proc
+
+
+def stop_node(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
+    """Signal the node's process group (its ``ray start``, raylet, workers and, on the head,
+    GCS); SIGKILL what is left after a few seconds."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, sig)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=10)
+        # The group may outlive its leader: make sure nothing of it stays.
+        os.killpg(proc.pid, signal.SIGKILL)
+    if proc.poll() is None:
+        proc.wait()
+
+
+@pytest.fixture
+def cluster(ray_env, tmp_path):
+    """A head and a worker node on this machine, one CPU each; stopped whatever happens."""
+    tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
+    address = f"127.0.0.2:{free_port()}"
+    common = ["--num-cpus", "1", "--node-ip-address", "127.0.0.2"]
+    common += ["--object-store-memory", str(100 * 2**20), "--disable-usage-stats"]
+    nodes = []
+    try:
+        nodes.append(
+            start_node(
+                ["--head", "--port", address.split(":")[1], "--temp-dir", tmp,
+                 "--include-dashboard", "false", *common],
+                ray_env,
+                tmp_path / "head.log",
+            )
+        )  # fmt: skip
+        nodes.append(start_node(["--address", address, *common], ray_env, tmp_path / "worker.log"))
+        probe = (
+            f"import json, ray; ray.init(address={address!r});"
+            "print(json.dumps([(n['NodeID'], 'node:__internal_head__' in n['Resources'])"
+            " for n in ray.nodes() if n['Alive']]))"
+        )
+        listed = json.loads(run([sys.executable, "-c", probe], ray_env).stdout.splitlines()[-1])
+        assert len(listed) == 2, listed
+        head_id = next(node for node, is_head in listed if is_head)
+        worker_id = next(node for node, is_head in listed if not is_head)
+        yield {"address": address, "head": head_id, "worker": worker_id, "worker_proc": nodes[1]}
+    finally:
+        for proc in reversed(nodes):
+            stop_node(proc, signal.SIGKILL)  # a throwaway cluster: nothing to shut down gently
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_env, cluster):
+    out = tmp_path / "sweep"
+    # A sampled search (Optuna through Tune's Repeater): one config, run with both seeds.
+    cmd = sweep_cmd(
+        "--seeds", "2", "--set", *TINY, "--search", "learning_rate=loguniform(1e-4, 1e-3)",
+        "--samples", "1", "--address", cluster["address"], "--out", str(out),
+    )  # fmt: skip
+    proc = subprocess.Popen(
+        cmd, env=ray_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    head, worker = cluster["head"], cluster["worker"]
+    try:
+        # Two trials, one CPU per node: they start together, one on each node. Once both run,
+        # kill the worker node (SIGKILL to its raylet and workers, as a machine lost).
+        def running_on_both():
+            running = {attempts(f)[-1]["node_id"]: f for f in folders(out) if attempts(f)}
+            return running.get(worker) if set(running) == {head, worker} else None
+
+        lost = wait_for(running_on_both, proc, "a trial running on each node")
+        assert finished(lost) is None
+        stop_node(cluster["worker_proc"], signal.SIGKILL)
+        output = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, output[-4000:]
+
+    results = json.loads((out / sweep.RESULTS_FILE).read_text())
+    assert results["complete"] and len(results["configs"]) == 1
+    (entry,) = results["configs"]
+    assert entry["seeds"] == [0, 1] and 1e-4 <= entry["config"]["learning_rate"] <= 1e-3
+    # The lost trial was retried by Tune on the head (the only node left) and finished there;
+    # the other ran once, on the head.
+    assert [t["node_id"] for t in attempts(lost)] == [worker, head]
+    assert finished(lost)["node_id"] == head and (lost / "final_model.zip").is_file()
+    (other,) = [f for f in folders(out) if f != lost]
+    assert [t["node_id"] for t in attempts(other)] == [head]
+    assert finished(other)["node_id"] == head
+
+
+# ---------------------------------------------------------------- the command line
+
+
+def test_search_spaces_and_values_are_parsed():
+    assert sweep.parse_space("loguniform(1e-4, 1e-3)") == ("loguniform", [1e-4, 1e-3])
+    assert sweep.parse_space("int(1, 4)") == ("int", [1, 4])
+    assert sweep.parse_space("choice([64, 64], [128, 128])") == ("choice", [[64, 64], [128, 128]])
+    assert sweep.parse_space("grid(lin_1e-3, 3e-4)") == ("grid", ["lin_1e-3", 3e-4])
+    assert sweep.parse_value("1e-4") == 1e-4 and sweep.parse_value("[8, 8]") == [8, 8]
+    assert sweep.parse_value("Tanh") == "Tanh"
+    for bad in ("normal(0, 1)", "uniform(1)", "uniform(2, 1)", "loguniform(0, 1)", "int(1.5, 3)"):
+        with pytest.raises(ValueError, match="--search"):
+            sweep.parse_space(bad)
+
+
+def test_trials_map_to_configs_and_seeds():
+    from ray import tune
+
+    settings = {
+        "search": {"net": "choice([8], [16, 16])", "gamma": "grid(0.9, 0.99)"},
+        "seeds": [0, 1, 2],
+    }
+    space, sampled = sweep.param_space({**settings, "search": {"gamma": "grid(0.9, 0.99)"}})
+    assert not sampled and space["seed"] == tune.grid_search([0, 1, 2])
+    space, sampled = sweep.param_space({**settings, "search": {"net": "choice([8], [16, 16])"}})
+    assert sampled and "seed" not in space  # seeds come from the Repeater's trial index
+    # Optuna's categorical choices must be scalars: lists travel as YAML text and come back.
+    assert sorted(space["net"].categories) == ["[16, 16]", "[8]"]
+    params, seed = sweep.trial_params({"net": "[16, 16]", "__trial_index__": 2}, settings)
+    assert params == {"net": [16, 16]} and seed == 2
+    params, seed = sweep.trial_params({"gamma": 0.99, "seed": 1}, settings)
+    assert params == {"gamma": 0.99} and seed == 1
+    # One folder per config, the same for every seed, different between configs.
+    assert sweep.config_key({"gamma": 0.99}) == sweep.config_key({"gamma": 0.99})
+    assert sweep.config_key({"gamma": 0.99}) != sweep.config_key({"gamma": 0.9})
+
+
+def test_dotted_keys_keep_the_rest_of_the_dict():
+    block = sweep.raw_block(ID, "ppo")
+    merged = sweep.expand({"policy_kwargs.net_arch": [8], "gamma": 0.9}, block)
+    assert merged["gamma"] == 0.9
+    assert merged["policy_kwargs"] == {**block["policy_kwargs"], "net_arch": [8]}
+    assert block["policy_kwargs"]["net_arch"] == [128, 128]  # the file's block is not changed
+
+
+def test_bad_settings_are_refused_before_ray_starts(tmp_path, capsys):
+    base = ["--out", str(tmp_path / "s")]
+    for args, message in (
+        (["--set", "no_such_key=1"], "--set"),
+        (["--set", "seed=3"], "--seeds"),
+        (["--search", "gamma=grid(0.9, 0.99)", "learning_rate=uniform(1e-4, 1e-3)"], "grid"),
+        (["--search", "gamma=grid(0.9, 0.99)", "--samples", "3"], "--samples"),
+        (["--seeds", "0"], "--seeds"),
+        (["--algo", "dqn"], "--algo"),
+        (["--resume", str(tmp_path)], "--resume"),
+        (["--resume", str(tmp_path), "--seeds", "2"], "--resume"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            sweep.main(args if "--resume" in args else args + base)
+        assert exit_info.value.code == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()  # nothing written for a refused sweep
