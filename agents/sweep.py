@@ -126,7 +126,7 @@ def check_keys(keys, env_id: str, algo: str, option: str) -> None:
     from stable_baselines3 import PPO, SAC
 
     cls = {"ppo": PPO, "sac": SAC}[algo]
-    allowed = (set(config.LOOP_KEYS) | set(inspect.signature(cls.__init__).parameters)) - {
+    allowed = (set(config.LOOP_KEYS) | set(inspect.signature(cls).parameters)) - {
         "self",
         "env",
         "seed",
