@@ -57,15 +57,21 @@ def resolve(params: dict[str, Any]) -> dict[str, Any]:
         value = out.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
             out[key] = linear_schedule(float(value[4:]))
-    kwargs = out.get("policy_kwargs") or {}
-    if isinstance(kwargs, str):  # the Zoo's form: an expression over dict and nn
-        kwargs = eval(kwargs, {"__builtins__": {}, "dict": dict, "nn": torch.nn})
-    kwargs = dict(kwargs)
+    kwargs = policy_kwargs(out.get("policy_kwargs"))
     if isinstance(kwargs.get("activation_fn"), str):
         kwargs["activation_fn"] = getattr(torch.nn, kwargs["activation_fn"])
     if kwargs:
         out["policy_kwargs"] = kwargs
     return out
+
+
+def policy_kwargs(value: Any) -> dict[str, Any]:
+    """The file's ``policy_kwargs`` as a dict: the Zoo writes an expression over dict and nn."""
+    import torch.nn
+
+    if isinstance(value, str):
+        value = eval(value, {"__builtins__": {}, "dict": dict, "nn": torch.nn})
+    return dict(value or {})
 
 
 class linear_schedule:  # noqa: N801  (a picklable function of progress_remaining)

@@ -145,9 +145,17 @@ def check_keys(keys, env_id: str, algo: str, option: str) -> None:
 
 
 def raw_block(env_id: str, algo: str) -> dict:
-    """The algorithm's block of the hyperparameter file as written (schedules unresolved)."""
+    """The env's block of the algorithm's hyperparameter file as written (schedules
+    unresolved), with ``policy_kwargs`` as a dict so that dotted keys can name its entries."""
     config.load(env_id, algo)  # ValueError naming env_id / algo when there is none
-    return dict(yaml.safe_load(config.config_path(env_id).read_text())[algo])
+    block = dict(yaml.safe_load(config.config_path(algo).read_text())[env_id])
+    if "policy_kwargs" in block:
+        # Plain values only (an activation by its torch.nn name): trial settings go to run.json.
+        kwargs = config.policy_kwargs(block["policy_kwargs"])
+        block["policy_kwargs"] = {
+            k: v.__name__ if isinstance(v, type) else v for k, v in kwargs.items()
+        }
+    return block
 
 
 def expand(overrides: dict, block: dict) -> dict:
