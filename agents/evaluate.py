@@ -140,12 +140,17 @@ EXTRA_COLUMNS = (
 )
 
 
+def table_columns(rows: list[dict]) -> tuple[tuple[str, str, str], ...]:
+    """(header, key, format) of the columns the rows carry: the common ones, then outcomes."""
+    return COLUMNS + tuple(c for c in EXTRA_COLUMNS if c[1] in rows[0])
+
+
 def print_table(rows: list[dict], title: str | None = None) -> None:
     """A rich table of evaluation summaries; extra ``final_*`` columns as they come."""
     from rich.console import Console
     from rich.table import Table
 
-    columns = COLUMNS + tuple(c for c in EXTRA_COLUMNS if c[1] in rows[0])
+    columns = table_columns(rows)
     table = Table(title=title)
     for name, _, _ in columns:
         table.add_column(name, justify="left" if name == "policy" else "right")

@@ -21,7 +21,14 @@ from rigid_env import cli
 from rigid_env.files import write_json
 
 from . import run_folder
-from .evaluate import DEFAULT_EPISODES, DEFAULT_SEED, evaluate, print_table, write_gif
+from .evaluate import (
+    DEFAULT_EPISODES,
+    DEFAULT_SEED,
+    evaluate,
+    print_table,
+    table_columns,
+    write_gif,
+)
 from .train_cli import (
     EXIT_CODES,
     StopOnSignal,
@@ -72,7 +79,16 @@ def main(argv=None) -> int:
     print("== 3/3 writing a clip of the learned policy", flush=True)
     clip = write_gif(env_id, best, run.out / "clip.gif", args.eval_seed)
     wall = time.perf_counter() - start
-    summary = {"rows": rows, "throughput": run.throughput, "wall_seconds": round(wall, 1)}
+    summary = {
+        "env_id": env_id,
+        "episodes": args.episodes,
+        "eval_seed": args.eval_seed,
+        # Self-describing: (header, key, format spec) per column, for tables made from this file.
+        "columns": [(h, k, f[2:-1]) for h, k, f in table_columns(rows)],
+        "rows": rows,
+        "throughput": run.throughput,
+        "wall_seconds": round(wall, 1),
+    }
     write_json(run.out / "main_job.json", summary, indent=2)
     tp = run.throughput
     if tp:  # empty when a resumed run had nothing left to train
