@@ -1,0 +1,25 @@
+"""Slots of the step tuple ``st`` and columns of its ``contact`` and ``report`` arrays.
+
+See the package docstring for what each holds. Kernels index with these names, never literals.
+"""
+
+# The step tuple.
+X0, Q0, V0, W0 = 0, 1, 2, 3  # start of step (read only)
+X, Q, V, W = 4, 5, 6, 7  # working state (the step's result)
+FORCE, TORQUE = 8, 9  # applied loads
+CONTACT = 10  # (N, C, CONTACT_WIDTH)
+REPORT = 11  # (N, REPORT_WIDTH)
+STEP_TUPLE_SIZE = 12
+
+# Columns of ``contact``: written by detection.
+ARM = 0  # 3 columns: world vector from the centre of mass to the contact point
+GAP = 3  # signed distance along the normal (< 0: penetration)
+BODY = 4  # body index (float)
+# From here on the columns belong to the contact solve.
+SOLVER = 5
+CONTACT_WIDTH = 16
+
+# Columns of ``report``.
+ITERATIONS = 0  # most iterations a solve of this element used this step
+CAPPED = 1  # 1.0 if a solve stopped at its iteration cap
+REPORT_WIDTH = 4
