@@ -59,7 +59,7 @@ module path and function name of the element kernel, its data tuple, whether it 
 and the contact slots it adds (detection). A factory returns ``None`` when it cannot run that
 scene (e.g. body–body pairs): the scene then steps with numpy. Force terms register likewise
 (``register_force``) and return a ``ForceKernel``. Register from your own module (e.g.
-``compiled/ground_solve.py``) and import it in ``registry.load_all``.
+``compiled/ground_solve.py``) and add it to ``backend.KERNEL_MODULES``.
 
 **The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
 source of a small module, ``element(e, st, data)`` calling each kernel in stage order with
