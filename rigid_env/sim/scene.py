@@ -14,6 +14,7 @@ import numpy as np
 from . import contacts as contact_stages
 from . import forces
 from .body import Body
+from .compiled.backend import driver_for
 from .integrators import REGISTRY
 from .model import Ground, Material, Model, Spring
 from .rotation import cross, quat_rotate, quat_to_matrix
@@ -47,6 +48,10 @@ class Scene:
     linear_damping, angular_damping : decay rates of linear and angular momentum, 1/s.
     contacts : a :class:`Material` for body–body contacts, or ``None`` (bodies pass through
         each other).
+    backend : ``"auto"`` (compiled when numba is installed and every stage has a kernel, else
+        numpy), ``"numpy"``, ``"compiled"`` or ``"compiled-threads"``; ``None`` reads the
+        environment variable ``RIGID_ENV_BACKEND`` (default ``"auto"``). See
+        :mod:`rigid_env.sim.compiled.backend`.
     """
 
     def __init__(
@@ -60,6 +65,7 @@ class Scene:
         linear_damping: float = 0.0,
         angular_damping: float = 0.0,
         contacts: Material | None = None,
+        backend: str | None = None,
     ):
         if isinstance(bodies, Body):
             bodies = (bodies,)
@@ -103,6 +109,8 @@ class Scene:
             "integrate",
             *contact_names,
         )
+        self._driver = driver_for(self, backend)
+        self.backend = "numpy" if self._driver is None else "compiled"
 
     @property
     def n_bodies(self) -> int:
@@ -173,12 +181,30 @@ class Scene:
         shape = self._check_state(state)
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
+        if self._driver is not None:
+            return self._compiled_step(state, shape, force, torque)
         new = self._integrate(self.model, state, self.dt, self._forces, force, torque)
         for _, stage in self._post_stages:
             new = stage(state, new)
         if not _all_finite(new):
             self._diagnose(state)
         return new
+
+    def _compiled_step(self, state, shape, force, torque) -> State:
+        n, drv = self.n_bodies, self._driver
+        flat = (-1, n, 3)
+        x, q, v, w, _, bad = drv(
+            _flat(state.position, flat),
+            _flat(state.orientation, (-1, n, 4)),
+            _flat(state.linear_velocity, flat),
+            _flat(state.angular_velocity, flat),
+            drv.zeros(shape).reshape(flat) if force is None else _flat_load(force, shape, flat),
+            drv.zeros(shape).reshape(flat) if torque is None else _flat_load(torque, shape, flat),
+        )
+        if bad:
+            self._diagnose(state)
+        qshape = shape[:-1] + (4,)
+        return State(x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape))
 
     def _check_state(self, state) -> tuple[int, ...]:
         if not isinstance(state, State):
@@ -271,6 +297,19 @@ def _load(value, name: str, shape: tuple[int, ...]):
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} contains NaN or infinity")
     return arr
+
+
+def _flat(arr: np.ndarray, flat: tuple[int, ...]) -> np.ndarray:
+    """A float64, C-contiguous, writable (N, n, ·) view or copy, as the kernels take."""
+    if arr.dtype != np.float64 or not arr.flags.c_contiguous or not arr.flags.writeable:
+        arr = np.array(arr, dtype=np.float64, order="C")
+    return arr.reshape(flat)
+
+
+def _flat_load(arr: np.ndarray, shape, flat) -> np.ndarray:
+    if arr.shape != shape:
+        arr = np.broadcast_to(arr, shape)
+    return _flat(arr, flat)
 
 
 def _all_finite(state: State) -> bool:
