@@ -10,7 +10,6 @@ has a kernel, else numpy; ``compiled`` insists and raises ``ValueError`` when it
 from __future__ import annotations
 
 import importlib
-import os
 
 BACKENDS = ("auto", "numpy", "compiled", "compiled-threads")
 # Modules whose import registers kernels (package-relative); a new kernel module goes here.
@@ -23,18 +22,6 @@ def numba_available() -> bool:
     except ImportError:
         return False
     return True
-
-
-def requested(backend: str | None) -> str:
-    """The backend asked for: the argument, else ``RIGID_ENV_BACKEND``, else ``auto``."""
-    if backend is None:
-        backend = os.environ.get("RIGID_ENV_BACKEND", "auto") or "auto"
-        name = "RIGID_ENV_BACKEND"
-    else:
-        name = "backend"
-    if backend not in BACKENDS:
-        raise ValueError(f"{name} must be one of {BACKENDS}, got {backend!r}")
-    return backend
 
 
 def kernels_for(scene):
@@ -60,9 +47,9 @@ def kernels_for(scene):
     return kernels, forces
 
 
-def driver_for(scene, backend: str | None = None):
-    """The compiled driver the scene should use, or None for the numpy path."""
-    backend = requested(backend)
+def driver_for(scene, backend: str):
+    """The compiled driver the scene should use, or None for the numpy path (``backend`` is
+    one of ``BACKENDS``, already validated by the scene)."""
     if backend == "numpy":
         return None
     if not numba_available():

@@ -1,15 +1,17 @@
 """Integrator kernels mirroring ``rigid_env.sim.integrators``, one body at a time.
 
-The functions in ``TEMPLATES`` evaluate forces through ``wrench``, which the generated driver
-defines; they are copied into the driver's module (see the package docstring). Each template
-``<name>(e, st, d)`` is an element kernel with ``d = ((body data, params[, springs]), force
-data)``, ``params = [dt, velocity_dependent]``; it reads the start of the step and writes the
-working state. The numpy twin of each is named in its docstring; the operations follow it in
-order, so the two agree to rounding.
+Every integrator's stage parts are templates (see the package docstring): ``<name>`` for a
+one-part integrator (stage ``integrate``), ``<name>_velocity`` and ``<name>_position`` for a
+semi-implicit one (stages ``integrate_velocity`` / ``integrate_position``). Each is an element
+kernel with ``d = ((body data, [dt, velocity_dependent], spring table), force data)`` that
+updates the working state in place, as its numpy twin updates the step context; the operations
+follow the twin in order, so the two agree to rounding. A new integrator module lists its
+templates in ``TEMPLATES`` and calls ``registry.register_integrator(name, module)``.
 """
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -31,8 +33,8 @@ from .bodies import (
     vec4,
 )
 from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_C, S_K, S_REST, spring_table
-from .layout import FORCE, Q0, TORQUE, V0, W0, X0, Q, V, W, X
-from .registry import Kernel, register
+from .layout import DISPLACEMENT, FORCE, TORQUE, Q, V, W, X
+from .registry import INTEGRATORS, Kernel, register, register_integrator
 from .rotation import (
     align_sign,
     cross,
@@ -53,15 +55,19 @@ from .rotation import (
 wrench = None
 
 TEMPLATES = (
-    "euler",
-    "euler_quat",
+    "euler_velocity",
+    "euler_position",
+    "euler_quat_velocity",
+    "euler_quat_position",
     "rk4_derivative",
     "rk4",
     "strang",
     "splitting",
     "splitting4",
-    "implicit_gyro",
-    "implicit",
+    "implicit_gyro_velocity",
+    "implicit_gyro_position",
+    "implicit_velocity",
+    "implicit_position",
 )
 
 
@@ -70,11 +76,11 @@ TEMPLATES = (
 
 @njit(cache=True)
 def load(st, e, b):
-    """Start-of-step state and applied loads of body b of element e, as tuples."""
-    x = (st[X0][e, b, 0], st[X0][e, b, 1], st[X0][e, b, 2])
-    q = (st[Q0][e, b, 0], st[Q0][e, b, 1], st[Q0][e, b, 2], st[Q0][e, b, 3])
-    v = (st[V0][e, b, 0], st[V0][e, b, 1], st[V0][e, b, 2])
-    w = (st[W0][e, b, 0], st[W0][e, b, 1], st[W0][e, b, 2])
+    """Working state and applied loads of body b of element e, as tuples."""
+    x = (st[X][e, b, 0], st[X][e, b, 1], st[X][e, b, 2])
+    q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+    v = (st[V][e, b, 0], st[V][e, b, 1], st[V][e, b, 2])
+    w = (st[W][e, b, 0], st[W][e, b, 1], st[W][e, b, 2])
     fa = (st[FORCE][e, b, 0], st[FORCE][e, b, 1], st[FORCE][e, b, 2])
     ta = (st[TORQUE][e, b, 0], st[TORQUE][e, b, 1], st[TORQUE][e, b, 2])
     return x, q, v, w, fa, ta
@@ -88,6 +94,24 @@ def store(st, e, b, x, q, v, w):
         st[W][e, b, i] = w[i]
     for i in range(4):
         st[Q][e, b, i] = q[i]
+
+
+@njit(cache=True)
+def store_velocity(st, e, b, v, w):
+    for i in range(3):
+        st[V][e, b, i] = v[i]
+        st[W][e, b, i] = w[i]
+
+
+@njit(cache=True)
+def translate(st, e, b, x, v, dt):
+    """``common.translate``: x + Δt v, plus the contact displacement (zero when none)."""
+    disp = st[DISPLACEMENT]
+    return (
+        x[0] + dt * v[0] + disp[e, b, 0],
+        x[1] + dt * v[1] + disp[e, b, 1],
+        x[2] + dt * v[2] + disp[e, b, 2],
+    )
 
 
 @njit(cache=True)
@@ -108,21 +132,38 @@ def axpy4(y, a, x):
     return (y[0] + a * x[0], y[1] + a * x[1], y[2] + a * x[2], y[3] + a * x[3])
 
 
+@njit(cache=True)
+def is_zero(t):
+    """numpy skips a term that is ``None``; zero loads are how the kernels see that case."""
+    return t[0] == 0.0 and t[1] == 0.0 and t[2] == 0.0
+
+
 # --- euler, euler_quat ------------------------------------------------------------------------
 
 
-def euler(e, st, d):
-    """``integrators.euler.euler``: the notes' Euler on matrices, Gram–Schmidt repair."""
-    (bd, prm), fds = d
+def euler_velocity(e, st, d):
+    """``integrators.euler.velocity``: v += Δt F/m; ω = M⁻¹ (M ω + Δt T) at the start pose."""
+    (bd, prm, sd), fds = d
     dt = prm[0]
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
+        x, q, v, w, fa, ta = load(st, e, b)
+        f, t = wrench(b, x, q, v, w, fa, ta, fds)
+        if not is_zero(f):
+            v = kick(v, dt, bd[b, INV_MASS], f)
+        if not is_zero(t):
+            rot = quat_to_matrix(q)
+            w = apply_inverse_inertia(bd, b, rot, axpy(apply_inertia(bd, b, rot, w), dt, t))
+        store_velocity(st, e, b, v, w)
+
+
+def euler_position(e, st, d):
+    """``integrators.euler.position_matrix``: R += Δt ω* R, Gram–Schmidt; ω = M⁻¹ L after."""
+    (bd, prm, sd), fds = d
+    dt = prm[0]
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         rot = quat_to_matrix(q)
-        f, t = wrench(b, x, q, v, w, fa, ta, fds)
-        v = kick(v, dt, bd[b, INV_MASS], f)
-        lw = axpy(apply_inertia(bd, b, rot, w), dt, t)
-        x = axpy(x, dt, v)
-        w = apply_inverse_inertia(bd, b, rot, lw)
+        lw = apply_inertia(bd, b, rot, w)
         c0 = cross(w, (rot[0], rot[3], rot[6]))
         c1 = cross(w, (rot[1], rot[4], rot[7]))
         c2 = cross(w, (rot[2], rot[5], rot[8]))
@@ -139,34 +180,41 @@ def euler(e, st, d):
             rot[8] + dt * wr[8],
         )
         rot = gram_schmidt(moved)
+        x = translate(st, e, b, x, v, dt)
         q = align_sign(matrix_to_quat(rot), q)
         store(st, e, b, x, q, v, apply_inverse_inertia(bd, b, rot, lw))
 
 
-def euler_quat(e, st, d):
-    """``integrators.euler.euler_quat``: q̇ = ½ (ω, 0) ∘ q, then renormalise."""
-    (bd, prm), fds = d
+def euler_quat_velocity(e, st, d):
+    """``integrators.euler.velocity`` (shared by both Euler variants)."""
+    euler_velocity(e, st, d)
+
+
+def euler_quat_position(e, st, d):
+    """``integrators.euler.position_quat``: q̇ = ½ (ω, 0) ∘ q, renormalise; ω = M⁻¹ L after."""
+    (bd, prm, sd), fds = d
     dt = prm[0]
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        rot = quat_to_matrix(q)
-        f, t = wrench(b, x, q, v, w, fa, ta, fds)
-        v = kick(v, dt, bd[b, INV_MASS], f)
-        lw = axpy(apply_inertia(bd, b, rot, w), dt, t)
-        x = axpy(x, dt, v)
-        w = apply_inverse_inertia(bd, b, rot, lw)
+        lw = apply_inertia(bd, b, quat_to_matrix(q), w)
         dq = quat_multiply((w[0], w[1], w[2], 0.0), q)
         q = quat_normalize(axpy4(q, 0.5 * dt, dq))
+        x = translate(st, e, b, x, v, dt)
         store(st, e, b, x, q, v, apply_inverse_inertia(bd, b, quat_to_matrix(q), lw))
 
 
 # --- rk4 --------------------------------------------------------------------------------------
 
 
-def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta):
+def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, start, x0, q0, v0, w0):
+    """``rk4.integrate.derivative``; at the first stage (``start``) the wrench is the force
+    stages' one, evaluated at the working state itself."""
     qn = quat_normalize(q)
     w = apply_inverse_inertia(bd, b, quat_to_matrix(qn), lw)
-    f, t = wrench(b, x, qn, v, w, fa, ta, fds)
+    if start:
+        f, t = wrench(b, x0, q0, v0, w0, fa, ta, fds)
+    else:
+        f, t = wrench(b, x, qn, v, w, fa, ta, fds)
     qd = quat_multiply((w[0], w[1], w[2], 0.0), qn)
     qdot = (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
     im = bd[b, INV_MASS]
@@ -176,13 +224,13 @@ def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta):
 
 
 def rk4(e, st, d):
-    """``integrators.rk4.rk4``: classical RK4 on (x, q, v, L)."""
-    (bd, prm), fds = d
+    """``integrators.rk4.integrate``: classical RK4 on (x, q, v, L)."""
+    (bd, prm, sd), fds = d
     dt = prm[0]
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x0, q0, v0, w0, fa, ta = load(st, e, b)
         l0 = apply_inertia(bd, b, quat_to_matrix(q0), w0)
-        k1 = rk4_derivative(bd, b, fds, x0, q0, v0, l0, fa, ta)
+        k1 = rk4_derivative(bd, b, fds, x0, q0, v0, l0, fa, ta, True, x0, q0, v0, w0)
         h = 0.5 * dt
         k2 = rk4_derivative(
             bd,
@@ -194,6 +242,11 @@ def rk4(e, st, d):
             axpy(l0, h, k1[3]),
             fa,
             ta,
+            False,
+            x0,
+            q0,
+            v0,
+            w0,
         )
         k3 = rk4_derivative(
             bd,
@@ -205,6 +258,11 @@ def rk4(e, st, d):
             axpy(l0, h, k2[3]),
             fa,
             ta,
+            False,
+            x0,
+            q0,
+            v0,
+            w0,
         )
         k4 = rk4_derivative(
             bd,
@@ -216,6 +274,11 @@ def rk4(e, st, d):
             axpy(l0, dt, k3[3]),
             fa,
             ta,
+            False,
+            x0,
+            q0,
+            v0,
+            w0,
         )
         s = dt / 6
         x = rk4_combine3(x0, s, k1[0], k2[0], k3[0], k4[0])
@@ -310,20 +373,20 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
 
 
 def splitting(e, st, d):
-    """``integrators.splitting.splitting``: Strang splitting, second order."""
-    (bd, prm), fds = d
+    """``integrators.splitting.integrate2``: Strang splitting, second order."""
+    (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, dt, vdep)
         store(st, e, b, x, q, v, w)
 
 
 def splitting4(e, st, d):
-    """``integrators.splitting.splitting4``: Yoshida's triple jump of ``splitting``."""
-    (bd, prm), fds = d
+    """``integrators.splitting.integrate4``: Yoshida's triple jump of ``splitting``."""
+    (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W1 * dt, vdep)
         x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W0 * dt, vdep)
@@ -374,24 +437,25 @@ def gyro_velocity(bd, b, q, w, t, dt):
     return rotate(rot, omega)
 
 
-@njit(cache=True)
-def drift_exp(x, q, v, w, dt):
-    """x + Δt v, q ← normalise(exp(Δt ω) ∘ q) (``implicit_gyro``'s position update)."""
-    return axpy(x, dt, v), quat_normalize(
-        quat_multiply(quat_exp((dt * w[0], dt * w[1], dt * w[2])), q)
-    )
-
-
-def implicit_gyro(e, st, d):
-    """``integrators.implicit_gyro.implicit_gyro``: semi-implicit Euler, implicit gyro term."""
-    (bd, prm), fds = d
+def implicit_gyro_velocity(e, st, d):
+    """``integrators.implicit_gyro.velocity``: kick v; implicit gyroscopic step for ω."""
+    (bd, prm, sd), fds = d
     dt = prm[0]
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         f, t = wrench(b, x, q, v, w, fa, ta, fds)
         v = kick(v, dt, bd[b, INV_MASS], f)
-        w = gyro_velocity(bd, b, q, w, t, dt)
-        x, q = drift_exp(x, q, v, w, dt)
+        store_velocity(st, e, b, v, gyro_velocity(bd, b, q, w, t, dt))
+
+
+def implicit_gyro_position(e, st, d):
+    """``integrators.implicit_gyro.position``: translate; q ← normalise(exp(Δt ω) ∘ q)."""
+    (bd, prm, sd), fds = d
+    dt = prm[0]
+    for b in range(st[X].shape[1]):
+        x, q, v, w, fa, ta = load(st, e, b)
+        x = translate(st, e, b, x, v, dt)
+        q = quat_normalize(quat_multiply(quat_exp((dt * w[0], dt * w[1], dt * w[2])), q))
         store(st, e, b, x, q, v, w)
 
 
@@ -477,8 +541,8 @@ def solve6(a, r):
     return r
 
 
-def implicit(e, st, d):
-    """``integrators.implicit.implicit``: linearised backward Euler, one 6×6 solve per body."""
+def implicit_velocity(e, st, d):
+    """``integrators.implicit.velocity``: linearised backward Euler, one 6×6 solve per body."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     system = np.empty((6, 6))
@@ -486,7 +550,7 @@ def implicit(e, st, d):
     jcj = np.empty((6, 6))
     u = np.empty(6)
     rhs = np.empty(6)
-    for b in range(st[X0].shape[1]):
+    for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         f, t = wrench(b, x, q, v, w, fa, ta, fds)
         rot = quat_to_matrix(q)
@@ -519,7 +583,16 @@ def implicit(e, st, d):
         du = solve6(system, rhs)
         v = (v[0] + du[0], v[1] + du[1], v[2] + du[2])
         w = (w[0] + du[3], w[1] + du[4], w[2] + du[5])
-        x = axpy(x, dt, v)
+        store_velocity(st, e, b, v, w)
+
+
+def implicit_position(e, st, d):
+    """``integrators.implicit.position``: translate; q ← exp(Δt ω) ∘ q (not renormalised)."""
+    (bd, prm, sd), fds = d
+    dt = prm[0]
+    for b in range(st[X].shape[1]):
+        x, q, v, w, fa, ta = load(st, e, b)
+        x = translate(st, e, b, x, v, dt)
         q = quat_multiply(quat_exp((dt * w[0], dt * w[1], dt * w[2])), q)
         store(st, e, b, x, q, v, w)
 
@@ -534,14 +607,30 @@ def skew(w):
     return (0.0, -w[2], w[1], w[2], 0.0, -w[0], -w[1], w[0], 0.0)
 
 
-@register("integrate")
-def _integrate(scene):
-    """The whole step of ``scene.integrator`` as one template kernel."""
+def integrator_data(scene) -> tuple:
+    """The data every integrator template gets: (body data, [dt, velocity_dependent], springs)."""
     model = scene.model
-    params = np.array([scene.dt, float(is_velocity_dependent(model))])
-    own = (bodies.body_data(model), params)
-    if scene.integrator == "implicit":
-        own = (*own, spring_table(model))
-    if scene.integrator not in TEMPLATES:
-        return None
-    return Kernel(__name__, scene.integrator, own, template=True)
+    params = np.array([scene.dt, float(is_velocity_dependent(scene.forces))])
+    return (bodies.body_data(model), params, spring_table(model))
+
+
+for _name in ("euler", "euler_quat", "rk4", "splitting", "splitting4", "implicit_gyro", "implicit"):
+    register_integrator(_name, __name__)
+
+
+def _integrator_stage(suffix: str):
+    def factory(scene):
+        module = INTEGRATORS.get(scene.integrator)
+        if module is None:
+            return None
+        name = scene.integrator + suffix
+        if name not in importlib.import_module(module).TEMPLATES:
+            return None
+        return Kernel(module, name, integrator_data(scene), template=True)
+
+    return factory
+
+
+register("integrate")(_integrator_stage(""))
+register("integrate_velocity")(_integrator_stage("_velocity"))
+register("integrate_position")(_integrator_stage("_position"))

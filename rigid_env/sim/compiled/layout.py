@@ -4,12 +4,13 @@ See the package docstring for what each holds. Kernels index with these names, n
 """
 
 # The step tuple.
-X0, Q0, V0, W0 = 0, 1, 2, 3  # start of step (read only)
-X, Q, V, W = 4, 5, 6, 7  # working state (the step's result)
+X0, Q0, V0, W0 = 0, 1, 2, 3  # the state passed in (read only)
+X, Q, V, W = 4, 5, 6, 7  # working state: starts as a copy (q renormalised), ends as the result
 FORCE, TORQUE = 8, 9  # applied loads
-CONTACT = 10  # (N, C, CONTACT_WIDTH)
-REPORT = 11  # (N, REPORT_WIDTH)
-STEP_TUPLE_SIZE = 12
+DISPLACEMENT = 10  # (N, n, 3): zero at the start; the position update adds it to x + Δt v
+CONTACT = 11  # (N, C, CONTACT_WIDTH)
+REPORT = 12  # (N, REPORT_WIDTH)
+STEP_TUPLE_SIZE = 13
 
 # Columns of ``contact``: written by detection.
 ARM = 0  # 3 columns: world vector from the centre of mass to the contact point

@@ -55,3 +55,12 @@ def register_force(name: str):
         return factory
 
     return deco
+
+
+INTEGRATORS: dict[str, str] = {}
+
+
+def register_integrator(name: str, module: str) -> None:
+    """Integrator ``name``'s templates live in ``module``: ``name`` (stage ``integrate``), or
+    ``name_velocity`` and ``name_position`` (stages ``integrate_velocity`` / ``_position``)."""
+    INTEGRATORS[name] = module
