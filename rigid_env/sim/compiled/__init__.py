@@ -87,3 +87,4 @@ writes the module to a cache directory under a name hashed from that source and 
 sources, imports it, and numba caches the compiled driver to disk (``cache=True``): one compile
 per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step
 runs.
+"""
