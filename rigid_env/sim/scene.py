@@ -262,8 +262,9 @@ class Scene:
         if arrays is None:
             arrays = self._arrays(state)
         shape = arrays[0].shape
-        torque = _load(torque, "torque", shape)
-        force = _load(force, "force", shape)
+        # Loads are checked for finiteness only if the step comes out non-finite (below).
+        torque = _load(torque, "torque", shape, check_finite=False)
+        force = _load(force, "force", shape, check_finite=False)
         if timer is not None:
             mid = time.perf_counter()
             timer.add("validate", mid - start)
@@ -275,6 +276,9 @@ class Scene:
         if bad_orientation:
             self._arrays(state)  # raises the ValueError that names state.orientation
         if diverged:
+            for name, load in (("torque", torque), ("force", force)):
+                if load is not None and not np.isfinite(load).all():
+                    raise ValueError(f"{name} contains NaN or infinity")
             self._diagnose(arrays)
         self.report = drv.report(report) if drv.slots else {}
         if len(shape) != 3:
@@ -432,7 +436,7 @@ def _finite(value, name: str) -> np.ndarray:
     return arr
 
 
-def _load(value, name: str, shape: tuple[int, ...]):
+def _load(value, name: str, shape: tuple[int, ...], check_finite: bool = True):
     """Validate an applied torque or force against the state shape (cheap in the good case)."""
     if value is None:
         return None
@@ -440,14 +444,15 @@ def _load(value, name: str, shape: tuple[int, ...]):
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a numeric array of shape {shape}") from None
-    if arr.shape != shape:
+    # A single 3-vector always broadcasts (the common case; broadcast_shapes costs ~1 µs).
+    if arr.shape != shape and arr.shape != shape[-1:]:
         try:
             ok = np.broadcast_shapes(arr.shape, shape) == shape
         except ValueError:
             ok = False
         if not ok or arr.ndim == 0:
             raise ValueError(f"{name} must broadcast to shape {shape}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if check_finite and not np.isfinite(arr).all():
         raise ValueError(f"{name} contains NaN or infinity")
     return arr
 

@@ -256,6 +256,10 @@ def _plain(arr: np.ndarray) -> np.ndarray:
 
 
 def _load(arr: np.ndarray, shape, flat) -> np.ndarray:
-    if arr.shape != shape:
-        arr = np.broadcast_to(arr, shape)
-    return _plain(arr.reshape(flat) if arr.flags.c_contiguous else _plain(arr).reshape(flat))
+    """An applied load (broadcastable to the state's shape) as a fresh or plain (N, n, 3)."""
+    if arr.shape == shape:
+        arr = _plain(arr)
+        return arr if shape == flat else arr.reshape(flat)
+    full = np.empty(flat)
+    (full if shape == flat else full.reshape(shape))[...] = arr
+    return full
