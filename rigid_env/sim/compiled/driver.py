@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scene import ORIENTATION_TOLERANCE
 from . import layout
 from .registry import ForceKernel, Kernel
 
@@ -100,7 +101,7 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
             src = textwrap.dedent(inspect.getsource(getattr(mod, name)))
             lines += ["", "", "@njit(cache=True)", src.rstrip()]
     lines += ["", "", "@njit(cache=True)", "def element(e, st, data):"]
-    lines += ["    if not begin(e, st):", "        return 1"]
+    lines += [f"    if not begin(e, st, {ORIENTATION_TOLERANCE!r}):", "        return 1"]
     for i, k in enumerate(kernels):
         call = k.name if k.template else f"stage_{i}"
         lines.append(f"    {call}(e, st, data[{i}])")

@@ -6,21 +6,21 @@ import math
 
 from numba import njit
 
-from ..scene import ORIENTATION_TOLERANCE
 from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, V0, W0, X0, Q, V, W, X
 
 
 @njit(cache=True)
-def begin(e, st):
+def begin(e, st, tolerance):
     """Working state = the state passed in with |q| renormalised, as ``StepContext`` (the
     scene's ``_norm2`` order: x² + y² + z² + w²); displacement and report zeroed. False when
-    a quaternion is off unit length by more than the scene accepts (its ``_arrays`` check)."""
+    a quaternion is off unit length by more than ``tolerance`` (the scene's
+    ``ORIENTATION_TOLERANCE``, written into the generated driver; its ``_arrays`` check)."""
     x0, q0, v0, w0 = st[X0], st[Q0], st[V0], st[W0]
     x, q, v, w = st[X], st[Q], st[V], st[W]
     disp = st[DISPLACEMENT]
     for b in range(x0.shape[1]):
         norm2 = q0[e, b, 0] ** 2 + q0[e, b, 1] ** 2 + q0[e, b, 2] ** 2 + q0[e, b, 3] ** 2
-        if not abs(norm2 - 1.0) <= 2 * ORIENTATION_TOLERANCE:
+        if not abs(norm2 - 1.0) <= 2 * tolerance:
             return False
         norm = math.sqrt(norm2)
         for i in range(4):
