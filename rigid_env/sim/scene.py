@@ -344,7 +344,9 @@ class Scene:
                 + ", ".join(f"{k} {a.shape}" for k, a in zip(STATE_FIELDS, arrays, strict=True))
             )
         # |q|² − 1 ≈ 2 (|q| − 1); a zero, non-finite or overflowing |q|² fails the comparison.
-        deviation = np.abs(_norm2(q) - 1.0)
+        # (One einsum: its summation order does not matter for a tolerance check.)
+        with np.errstate(over="ignore", invalid="ignore"):
+            deviation = np.abs(np.einsum("...i,...i->...", q, q) - 1.0)
         if not np.all(deviation <= 2 * ORIENTATION_TOLERANCE):
             raise ValueError(
                 f"state.orientation must hold finite unit quaternions (x, y, z, w) with |q| "
@@ -458,5 +460,9 @@ def _load(value, name: str, shape: tuple[int, ...], check_finite: bool = True):
 
 
 def _all_finite(state: State) -> bool:
-    # Elementwise, not a sum: a sum of large finite values can overflow to infinity.
+    # A NaN or infinity anywhere makes an array's sum non-finite (one reduction per array);
+    # so can large finite values, whose sum overflows: only then look element by element.
+    with np.errstate(over="ignore", invalid="ignore"):
+        if all(np.isfinite(arr.sum()) for arr in state.arrays()):
+            return True
     return all(np.isfinite(arr).all() for arr in state.arrays())
