@@ -275,6 +275,10 @@ class Scene:
             mid = end
         if bad_orientation:
             self._arrays(state)  # raises the ValueError that names state.orientation
+            raise ValueError(  # (a quaternion within rounding of the tolerance: same verdict)
+                f"state.orientation must hold finite unit quaternions (x, y, z, w) with |q| "
+                f"within {ORIENTATION_TOLERANCE:g} of 1"
+            )
         if diverged:
             for name, load in (("torque", torque), ("force", force)):
                 if load is not None and not np.isfinite(load).all():

@@ -17,7 +17,6 @@ import math
 import numpy as np
 from numba import njit
 
-from ..forces import is_velocity_dependent
 from ..integrators.splitting import _W0, _W1
 from . import bodies
 from .bodies import (
@@ -628,7 +627,8 @@ def implicit_position(e, st, d):
 def integrator_data(scene) -> tuple:
     """The data every integrator template gets: (body data, [dt, velocity_dependent], springs)."""
     model = scene.model
-    params = np.array([scene.dt, float(is_velocity_dependent(scene.forces))])
+    velocity_dependent = any(term.velocity_dependent for term in scene.forces)
+    params = np.array([scene.dt, float(velocity_dependent)])
     return (bodies.body_data(model), params, spring_table(model))
 
 
