@@ -284,7 +284,7 @@ class Scene:
                 if load is not None and not np.isfinite(load).all():
                     raise ValueError(f"{name} contains NaN or infinity")
             self._diagnose(arrays)
-        self.report = drv.report(report) if drv.slots else {}
+        self.report = drv.report(report)
         if len(shape) != 3:
             qshape = shape[:-1] + (4,)
             x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)

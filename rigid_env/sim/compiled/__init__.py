@@ -42,8 +42,9 @@ restitution velocity change...; widen ``CONTACT_WIDTH`` in ``layout.py`` if need
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
 at the start-of-step pose as numpy does. ``report`` columns: ``ITERATIONS`` (most iterations a
-solve of this element used this step) and ``CAPPED`` (1.0 if a solve stopped at its cap); the
-scene turns them into ``scene.report`` (``Driver.report``).
+solve of this element used this step), ``CAPPED`` (1.0 if a solve stopped at its cap) and the
+others in ``layout.py``; a kernel that writes them gives its ``Kernel`` a ``report`` function
+that turns the columns into the ``scene.report`` entries its numpy twin writes.
 
 **An element kernel** is ``kernel(e, st, d) -> None``. It reads and writes only row ``e`` of
 the ``st`` arrays (so a batched step equals the same element stepped alone, bit for bit, and

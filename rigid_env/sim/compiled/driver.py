@@ -164,16 +164,13 @@ class Driver:
         self._pool = None
         self._last = None
         self._entry = None
+        self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
 
-    @staticmethod
-    def report(report) -> dict:
-        """The step's report from the per-element columns (empty when nothing to say)."""
-        if report.shape[0] == 0 or not report.any():
-            return {}
-        out = {"contact_iterations": int(report[:, layout.ITERATIONS].max())}
-        capped = int(np.count_nonzero(report[:, layout.CAPPED]))
-        if capped:
-            out["contact_capped"] = capped
+    def report(self, columns) -> dict:
+        """``scene.report`` from the step's report columns, by the kernels that wrote them."""
+        out = {}
+        for fn in self._reporters:
+            out.update(fn(columns))
         return out
 
     def _buffers(self, shape):
