@@ -201,6 +201,14 @@ class Driver:
         if len(shape) != 3:
             x0, q0, v0, w0 = x0.reshape(flat), q0.reshape(qflat), v0.reshape(flat), w0.reshape(flat)
         x0, q0, v0, w0 = _plain(x0), _plain(q0), _plain(v0), _plain(w0)
+        if self.slots:
+            # Contact stages write the scratch: fresh per call, so concurrent steps of one
+            # scene (threads) cannot mix. Without contacts it only ever holds zeros.
+            disp, contact, report = (
+                np.empty_like(disp),
+                np.empty_like(contact),
+                np.empty_like(report),
+            )
         force = zero if force is None else _load(force, shape, flat)
         torque = zero if torque is None else _load(torque, shape, flat)
         x, q, v, w = np.empty_like(x0), np.empty_like(q0), np.empty_like(v0), np.empty_like(w0)
