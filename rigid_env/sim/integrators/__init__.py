@@ -18,6 +18,7 @@ natural frequency ω_n diverges once ω_n Δt > 2; `implicit` does not.
 from __future__ import annotations
 
 from .euler import euler, euler_quat
+from .exact import exact, exact4
 from .implicit import implicit
 from .implicit_gyro import implicit_gyro
 from .rk4 import rk4
@@ -31,4 +32,6 @@ REGISTRY = {
     "splitting4": splitting4,
     "implicit_gyro": implicit_gyro,
     "implicit": implicit,
+    "exact": exact,
+    "exact4": exact4,
 }
