@@ -30,8 +30,8 @@ A step (semi-implicit Euler: forces → velocities → contacts → positions):
    by the violated corners: exact for a box resting or landing flat, so resting is a fixed
    point of the step (no jitter, creep or sinking). An exact solution removes kinetic energy
    (``_dissipative``); an impulse that would add some is cut back along its own direction.
-2. Positions drift with the solved velocities: x ← x₁ + Δt (v_s − v₁), q ← exp(Δt (ω_s − ω₁)) q₁,
-   which equals x₀ + Δt v_s for the semi-implicit integrators this stage accepts.
+2. Positions drift with the solved velocities: the integrator's position update runs after the
+   solve (x ← x₀ + Δt v_s), plus the projection of step 4 as its displacement.
 3. *Restitution pass* (velocities only, Box2D v3's ``applyRestitution``): a contact that carried
    impulse and was approached faster than the material's threshold gets ``v_n = −ε v_impact``.
    The impact speed is the normal approach speed interpolated to the instant the gap closes
@@ -47,8 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import cross, quat_exp, quat_multiply, quat_normalize, quat_to_matrix
-from ..state import State
+from ..rotation import cross, quat_to_matrix
 
 MAX_ITERATIONS = 20
 RELATIVE_TOLERANCE = 1e-13
@@ -130,7 +129,8 @@ class _Layout:
 
 
 class ContactStage:
-    """``stage(old, new) -> State``: the contact response appended to a semi-implicit step."""
+    """The contact response between a semi-implicit step's velocity and position updates
+    (``respond``); ``contacts.stages`` wires it into the pipeline."""
 
     def __init__(self, model, dt, ground=None, pairs=None, iterations=MAX_ITERATIONS):
         self.model, self.dt, self.ground, self.pairs = model, dt, ground, pairs
@@ -143,18 +143,21 @@ class ContactStage:
 
     # --- assembly -------------------------------------------------------------------------------
 
-    def _detect(self, x0, q0):
-        """Arms, normals and gaps of all contacts, (…, C, ·); arm_b for the pair slots only."""
+    def _assemble(self, ground_hits, pair_hits):
+        """Arms, normals and gaps of all contacts, (…, C, ·); arm_b for the pair slots only.
+
+        ``ground_hits`` is ``GroundContacts.detect``'s (arm, gap) or None, ``pair_hits``
+        ``PairContacts.detect``'s list or None (the collide stages' results)."""
         arms, normals, gaps, arm_b = [], [], [], None
-        if self.ground is not None:
-            arm, gap = self.ground.detect(x0, q0)
+        if ground_hits is not None:
+            arm, gap = ground_hits
             batch = gap.shape[:-2]
             arms.append(arm.reshape(*batch, -1, 3))
             gaps.append(gap.reshape(*batch, -1))
             normals.append(np.broadcast_to(_UP, arms[-1].shape))
-        if self.pairs is not None:
+        if pair_hits is not None:
             arm_bs = []
-            for _, _, arm_a, arm_bb, n, gap in self.pairs.detect(x0, q0):
+            for _, _, arm_a, arm_bb, n, gap in pair_hits:
                 batch = gap.shape[:-2]
                 arms.append(arm_a.reshape(*batch, -1, 3))
                 arm_bs.append(arm_bb.reshape(*batch, -1, 3))
@@ -194,14 +197,22 @@ class ContactStage:
 
     # --- the stage ------------------------------------------------------------------------------
 
-    def __call__(self, old: State, new: State) -> State:
+    def respond(self, start, v1, w1, ground_hits=None, pair_hits=None):
+        """The contact response of one step, or ``None`` when no contact is within reach.
+
+        ``start`` is the step's input :class:`State` (restitution reads its velocities), (v1, w1)
+        the post-force velocities, the hits detected at the start positions flattened to one
+        batch axis ``(N, n, ·)`` (see ``contacts.stages``). Returns
+        ``(v, w, shift, v_out, w_out)`` in the batch shape: the main pass's velocities, which
+        the positions drift with, the translation that removes the remaining penetration, and
+        the velocities after the restitution pass (the step's final ones).
+        """
         dt, lay = self.dt, self.layout
         n = self.model.n_bodies
-        batch = old.position.shape[:-2]
-        flat = [a.reshape(-1, n, a.shape[-1]) for a in (*old.arrays(), *new.arrays())]
-        x0, q0 = flat[0], flat[1]
-        arm_a, arm_b, normal, gap = self._detect(x0, q0)
-        u1 = np.concatenate(flat[6:], axis=-1)  # (N, n, 6)
+        batch = start.position.shape[:-2]
+        flat = [a.reshape(-1, n, a.shape[-1]) for a in (*start.arrays(), v1, w1)]
+        arm_a, arm_b, normal, gap = self._assemble(ground_hits, pair_hits)
+        u1 = np.concatenate(flat[4:], axis=-1)  # (N, n, 6)
         ua = u1 if lay.single_body else u1[:, lay.a]
         vrel = ua[..., :3] + cross(ua[..., 3:], arm_a)
         if arm_b is not None:
@@ -211,7 +222,7 @@ class ContactStage:
         # Only batch elements with a contact within reach this step pay for the solve.
         engaged = np.any(gap + dt * np.minimum(vn1, 0.0) < 0, axis=-1)
         if not engaged.any():
-            return new
+            return None
         if engaged.all():
             result = self._solve(flat, u1, arm_a, arm_b, normal, gap, vrel, vn1)
         else:
@@ -226,14 +237,15 @@ class ContactStage:
                 vrel[sub],
                 vn1[sub],
             )
-            result = [np.array(a) for a in flat[4:]]
+            v, w = flat[4:]
+            result = [np.array(v), np.array(w), np.zeros_like(v), np.array(v), np.array(w)]
             for full, got in zip(result, part, strict=True):
                 full[sub] = got
-        return State(*(a.reshape(*batch, n, a.shape[-1]) for a in result))
+        return tuple(a.reshape(*batch, n, a.shape[-1]) for a in result)
 
     def _solve(self, flat, u1, arm_a, arm_b, normal, gap, vrel, vn1):
         dt, lay, model = self.dt, self.layout, self.model
-        x0, q0, v0, w0, x1, q1, v1, w1 = flat
+        x0, q0, v0, w0, v1, w1 = flat
         size, n6 = len(gap), 6 * model.n_bodies
         t1, t2 = _tangents(normal, vrel, vn1)
         basis = np.stack((normal, t1, t2), axis=-2)  # (N, C, 3, 3)
@@ -266,12 +278,10 @@ class ContactStage:
 
         vel = free + (jt @ dz.reshape(size, n6, 1)).reshape(size, lay.c, 3)
         u = u1 + self._velocity_change(dz, scale)
-        x = x1 + dt * (u[..., :3] - v1)
-        q = quat_normalize(quat_multiply(quat_exp(dt * (u[..., 3:] - w1)), q1))
-        x = self._project(x, gap + dt * vel[..., 0], normal)
+        shift = self._project(np.zeros_like(v1), gap + dt * vel[..., 0], normal)
         u0 = np.concatenate((v0, w0), axis=-1)
-        u = self._restitute(u, u1, u0, q0, lam[..., 0], vn1, gap, vel[..., 0], jt, scale, diag)
-        return x, q, np.array(u[..., :3]), np.array(u[..., 3:])
+        out = self._restitute(u, u1, u0, q0, lam[..., 0], vn1, gap, vel[..., 0], jt, scale, diag)
+        return u[..., :3], u[..., 3:], shift, out[..., :3], out[..., 3:]
 
     @staticmethod
     def _dissipative(lam, dz, z1):

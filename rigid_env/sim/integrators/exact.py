@@ -37,10 +37,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..elliptic import carlson_rf_rj, jacobi_sn_cn_dn
-from ..rotation import cross, quat_conjugate, quat_exp, quat_multiply, quat_rotate, quat_to_matrix
-from ..state import State
-from .common import kick, wrench
-from .splitting import _W0, _W1, _half_kick
+from ..rotation import cross, quat_conjugate, quat_exp, quat_multiply
+from .common import INTEGRATE, Integrator
+from .splitting import integrate2, integrate4
 
 # Stand-ins for the elements that take the constant branch, so that the elliptic branch never
 # sees a degenerate body (its result is discarded there).
@@ -179,42 +178,34 @@ def free_flow(moments, m, h):
     return m_new, dq
 
 
-def _strang(model, x, q, v, w, dt, forces, force, torque):
-    f, t = wrench(forces, x, q, v, w, force, torque)
-    v = kick(v, 0.5 * dt, model.inv_mass[:, None], f)
-    x = x + dt * v
-    # Principal axes: m = I Ω (+ ½ Δt Rᵀ T, the opening half kick), as in ``splitting``.
-    qp = q if model.principal_quat is None else quat_multiply(q, model.principal_quat)
-    conj = quat_conjugate(qp)
-    m = model.principal_moments * quat_rotate(conj, w)
-    if t is not None:
-        m = m + (0.5 * dt) * quat_rotate(conj, t)
-    m, dq = free_flow(model.principal_moments, m, dt)
+def exact_rotation(model, qp, m, h):
+    """``splitting``'s free-rotation hook: the exact flow of (qp, m) over h, qp renormalised."""
+    m, dq = free_flow(model.principal_moments, m, h)
     qp = quat_multiply(qp, dq)
     # Renormalised for the reason given in ``splitting.free_rotation``.
-    qp = qp / np.linalg.norm(qp, axis=-1, keepdims=True)
-    w = quat_rotate(qp, m * model.inverse_principal_moments_array)
-    # The round trip m → ω (world) → m rounds with a bias of ~ +1 ε per step in |m| (the
-    # anisotropic I weights the rotation's rounding); rescaling ω so that the next step reads
-    # back |m| keeps |L| and the energy from drifting linearly (the flow itself is exact).
-    back = model.principal_moments * quat_rotate(quat_conjugate(qp), w)
-    w = w * (np.linalg.norm(m, axis=-1) / np.linalg.norm(back, axis=-1))[..., None]
-    q = qp if model.principal_quat is None else quat_multiply(qp, model.principal_conj)
-    if f is None and t is None:
-        return x, q, v, w
-    rot = None if t is None else quat_to_matrix(q)
-    v_end, w_end = _half_kick(model, rot, x, q, v, w, v, w, dt, forces, force, torque)
-    if forces is not None and forces.velocity_dependent:
-        v_end, w_end = _half_kick(model, rot, x, q, v, w, v_end, w_end, dt, forces, force, torque)
-    return x, q, v_end, w_end
+    return qp / np.linalg.norm(qp, axis=-1, keepdims=True), m
 
 
-def exact(model, state, dt, forces, force, torque) -> State:
-    return State(*_strang(model, *state.arrays(), dt, forces, force, torque))
+def _integrate2(ctx) -> None:
+    integrate2(ctx, exact_rotation)
 
 
-def exact4(model, state, dt, forces, force, torque) -> State:
-    y = state.arrays()
-    for weight in (_W1, _W0, _W1):
-        y = _strang(model, *y, weight * dt, forces, force, torque)
-    return State(*y)
+def _integrate4(ctx) -> None:
+    integrate4(ctx, exact_rotation)
+
+
+EXACT = Integrator(
+    "exact",
+    ((INTEGRATE, _integrate2),),
+    order=2,
+    symplectic=True,
+    summary="Strang splitting of the exact torque-free flow with kicks; exact without torque",
+)
+EXACT4 = Integrator(
+    "exact4",
+    ((INTEGRATE, _integrate4),),
+    order=4,
+    symplectic=True,
+    summary="Yoshida's triple jump of the exact Strang step; 3 × exact",
+)
+RECORDS = (EXACT, EXACT4)
