@@ -61,18 +61,22 @@ def carlson_rf_rj(x, y, z, p) -> tuple[np.ndarray, np.ndarray]:
     delta = (p - x) * (p - y) * (p - z)
     a0_f, a0_j, x0, y0, z0 = a_f, a_j, x, y, z
     total = np.zeros_like(x)
-    scale = 1.0  # 4^-m
+    scale = np.ones_like(x)  # 4^-m, per element
+    # Each element stops at its own step count, so a batch gives bit for bit the results of its
+    # elements computed alone (the loop runs to the slowest element).
     for _ in range(MAX_DUPLICATIONS):
-        if np.all((scale * q_f < np.abs(a_f)) & (scale * q_j < np.abs(a_j))):
+        going = ~((scale * q_f < np.abs(a_f)) & (scale * q_j < np.abs(a_j)))
+        if not np.any(going):
             break
         sx, sy, sz, sp = np.sqrt(x), np.sqrt(y), np.sqrt(z), np.sqrt(p)
         lam = sx * sy + sy * sz + sz * sx
         d = (sp + sx) * (sp + sy) * (sp + sz)
         e = scale**3 * delta / (d * d)
-        total = total + scale * _rc_one_plus(e) / d
-        x, y, z, p = (x + lam) / 4, (y + lam) / 4, (z + lam) / 4, (p + lam) / 4
-        a_f, a_j = (a_f + lam) / 4, (a_j + lam) / 4
-        scale /= 4
+        total = np.where(going, total + scale * _rc_one_plus(e) / d, total)
+        x, y, z, p = (np.where(going, (a + lam) / 4, a) for a in (x, y, z, p))
+        a_f = np.where(going, (a_f + lam) / 4, a_f)
+        a_j = np.where(going, (a_j + lam) / 4, a_j)
+        scale = np.where(going, scale / 4, scale)
     else:
         raise EllipticConvergenceError(
             f"Carlson duplication did not converge in {MAX_DUPLICATIONS} steps "
@@ -121,14 +125,13 @@ _SN_SERIES = (
 _SERIES_RADIUS = 2.0**-5
 
 
-def halvings(u) -> int:
-    """How many times ``u`` must be halved to enter the series' range (worst of the batch)."""
-    biggest = float(np.max(np.abs(u), initial=0.0))
-    if not np.isfinite(biggest):
+def halvings(u) -> np.ndarray:
+    """Per element, how many times ``u`` must be halved to enter the series' range."""
+    a = np.abs(u)
+    if not np.all(np.isfinite(a)):
         raise ValueError("jacobi_sn_cn_dn: u must be finite")
-    if biggest <= _SERIES_RADIUS:
-        return 0
-    return int(np.ceil(np.log2(biggest / _SERIES_RADIUS)))
+    _, exponent = np.frexp(a / _SERIES_RADIUS)  # a / radius = f 2^e, f in [0.5, 1)
+    return np.maximum(exponent, 0)
 
 
 def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -143,11 +146,12 @@ def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     with (sn, cn) renormalised each time, and dn = √(cn² + mc sn²) (never cancels; dn > 0).
     The phase error grows like N ε |u|, i.e. rounding in u. The sign of cn follows u's range:
-    cn >= 0 for |u| <= K(m), as for the exact function.
+    cn >= 0 for |u| <= K(m), as for the exact function. N is per element (bit for bit the same
+    result in any batch).
     """
     u, m, mc = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (u, m, mc)))
     n = halvings(u)
-    x = u * 2.0**-n
+    x = np.ldexp(u, -n)
     x2 = x * x
     s = np.zeros_like(x)
     for coefficients in reversed(_SN_SERIES):
@@ -157,11 +161,12 @@ def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         s = s * x2 + poly
     s = s * x
     c = np.sqrt((1 - s) * (1 + s))
-    for _ in range(n):
+    for k in range(int(np.max(n, initial=0))):
         d = np.sqrt(c * c + mc * s * s)
         s2, c2 = s * s, c * c
         den = c2 + s2 * d * d
-        s, c = 2 * s * c * d / den, (c2 * c2 - mc * s2 * s2) / den
-        norm = np.hypot(s, c)
-        s, c = s / norm, c / norm
+        s_new, c_new = 2 * s * c * d / den, (c2 * c2 - mc * s2 * s2) / den
+        norm = np.hypot(s_new, c_new)
+        going = k < n
+        s, c = np.where(going, s_new / norm, s), np.where(going, c_new / norm, c)
     return s, c, np.sqrt(c * c + mc * s * s)
