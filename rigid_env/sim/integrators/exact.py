@@ -133,11 +133,11 @@ def free_flow(moments, m, h):
         np.stack((1.0 + nu * sn0**2, 1.0 + nu)),
     )
     u0 = sn0 * rf[0]
-    quarter = np.where(separatrix, np.inf, rf[1])  # K(k)
+    quarter = np.where(separatrix, 1.0, rf[1])  # K(k); unused (no reduction) when K = ∞
     pi_complete = rf[1] - (nu / 3) * rj[1]  # Π(−ν | k²)
     u1 = u0 + lam * h
-    periods = np.where(separatrix, 0.0, np.round(u1 / (2 * np.where(separatrix, 1.0, quarter))))
-    r = u1 - np.where(separatrix, 0.0, 2 * quarter * periods)
+    periods = np.where(separatrix, 0.0, np.round(u1 / (2 * quarter)))
+    r = u1 - 2 * quarter * periods
     sn_r, cn_r, dn_r = jacobi_sn_cn_dn(r, mk, mc)
     # Two zero arguments (cn = dn = 0) happen only on the separatrix at the equilibrium, where
     # the closed form below is used instead.
@@ -174,7 +174,7 @@ def free_flow(moments, m, h):
     dq = np.concatenate((dq_vec, dq_s[..., 3:]), axis=-1)
     # Constant motions: Ω fixed in the body, the body turns uniformly about it.
     m_new = np.where(safe, m, m_new)
-    dq = np.where(safe, quat_exp(h * omega), dq)
+    dq = np.where(safe, quat_exp(np.asarray(h, float)[..., None] * omega), dq)
     return m_new, dq
 
 
