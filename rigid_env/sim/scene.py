@@ -19,6 +19,7 @@ import numpy as np
 from . import contacts as contact_stages
 from . import forces
 from .body import Body
+from .compiled.backend import BACKENDS, driver_for
 from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
 from .pipeline import StageTimer, StepContext, run
@@ -31,8 +32,8 @@ DEFAULT_INTEGRATOR = "splitting"
 # Scenes with contacts default to semi-implicit Euler with the implicit gyroscopic term: contact
 # impulses act between its velocity and position updates, and it stays stable for tumbling boxes.
 CONTACT_INTEGRATOR = "implicit_gyro"
-# Step implementations; ``backend=None`` reads RIGID_ENV_BACKEND, else "numpy".
-BACKENDS: tuple[str, ...] = ("numpy",)
+# Step implementations (``compiled.backend``); ``backend=None`` reads RIGID_ENV_BACKEND, else
+# "auto": compiled kernels when numba imports and every stage has one, else numpy.
 BACKEND_VARIABLE = "RIGID_ENV_BACKEND"
 # A state's quaternions must have |q| within this of 1 (a step renormalises its copy); a
 # quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
@@ -60,8 +61,12 @@ class Scene:
     linear_damping, angular_damping : decay rates of linear and angular momentum, 1/s.
     contacts : a :class:`Material` for body–body contacts, or ``None`` (bodies pass through
         each other).
-    backend : one of :data:`BACKENDS`; ``None`` reads the environment variable
-        ``RIGID_ENV_BACKEND`` (default ``"numpy"``, the reference implementation).
+    backend : one of :data:`BACKENDS`: ``"numpy"`` (the reference implementation),
+        ``"compiled"`` (numba kernels, one call per step; ``ValueError`` when numba is missing
+        or a stage has no kernel), ``"compiled-threads"`` (the same over threads, for large
+        batches), ``"auto"`` (compiled when possible, else numpy); ``None`` reads the
+        environment variable ``RIGID_ENV_BACKEND`` (default ``"auto"``). ``scene.backend`` is
+        the one in use, ``"numpy"`` or ``"compiled"``.
     timer : a :class:`~rigid_env.sim.pipeline.StageTimer` that accumulates the wall time of
         each stage (also settable later as ``scene.timer``); ``None`` times nothing.
 
@@ -134,6 +139,8 @@ class Scene:
         self.pipeline: tuple = (*self.forces, *steps)
         self.timer = timer
         self.report: dict = {}
+        self._driver = driver_for(self, self.backend)
+        self.backend = "numpy" if self._driver is None else "compiled"
 
     @property
     def stages(self) -> tuple[str, ...]:
@@ -218,6 +225,8 @@ class Scene:
         shape = arrays[0].shape
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
+        if self._driver is not None:
+            return self._compiled_step(arrays, force, torque, start)
         ctx = StepContext(self.model, self.dt, State(*arrays), force, torque, self.forces)
         # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is renormalised.
         ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
@@ -234,6 +243,37 @@ class Scene:
         self.report = ctx.report
         if timer is not None:
             end = clock()
+            timer.add("check", end - mid)
+            timer.step_seconds += end - start
+            timer.steps += 1
+        return new
+
+    def _compiled_step(self, arrays, force, torque, start) -> State:
+        """The whole step in one kernel call over the flattened batch (``compiled.driver``)."""
+        timer, drv = self.timer, self._driver
+        shape = arrays[0].shape
+        flat = shape if len(shape) == 3 else (-1, *shape[-2:])
+        if timer is not None:
+            mid = time.perf_counter()
+            timer.add("validate", mid - start)
+        x, q, v, w, report, bad = drv(
+            *(_kernel_array(a, flat) for a in arrays),
+            drv.zeros(shape, flat) if force is None else _kernel_load(force, shape, flat),
+            drv.zeros(shape, flat) if torque is None else _kernel_load(torque, shape, flat),
+        )
+        if timer is not None:
+            end = time.perf_counter()
+            timer.add("compiled", end - mid)
+            mid = end
+        if bad:
+            self._diagnose(arrays)
+        self.report = drv.report(report)
+        if len(shape) != 3:
+            qshape = shape[:-1] + (4,)
+            x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)
+        new = State(x, q, v, w)
+        if timer is not None:
+            end = time.perf_counter()
             timer.add("check", end - mid)
             timer.step_seconds += end - start
             timer.steps += 1
@@ -329,10 +369,23 @@ def _norm2(q: np.ndarray) -> np.ndarray:
     return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
 
 
+def _kernel_array(arr: np.ndarray, flat: tuple[int, ...]) -> np.ndarray:
+    """``arr`` as the kernels take it: float64, C-contiguous, writable, (N, n, ·)."""
+    if not (arr.flags.c_contiguous and arr.flags.writeable) or arr.dtype != np.float64:
+        arr = np.array(arr, dtype=np.float64, order="C")
+    return arr if arr.ndim == 3 else arr.reshape(flat[0], *arr.shape[-2:])
+
+
+def _kernel_load(arr: np.ndarray, shape: tuple[int, ...], flat: tuple[int, ...]) -> np.ndarray:
+    if arr.shape != shape:
+        arr = np.broadcast_to(arr, shape)
+    return _kernel_array(arr, flat)
+
+
 def _backend(value: str | None) -> str:
     source = "backend"
     if value is None:
-        value, source = os.environ.get(BACKEND_VARIABLE) or "numpy", BACKEND_VARIABLE
+        value, source = os.environ.get(BACKEND_VARIABLE) or "auto", BACKEND_VARIABLE
     if value not in BACKENDS:
         raise ValueError(f"{source} must be one of {BACKENDS}, got {value!r}")
     return value
