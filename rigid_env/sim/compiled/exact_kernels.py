@@ -293,12 +293,16 @@ def exact_rotation(moments, qp, m, h):
 
 
 @njit(cache=True)
-def read_back(moments, qp, pi, w):
-    """``splitting._read_back``: ω rescaled so that the next step reads back |Π|."""
+def read_back(moments, inv, qp, pi, w):
+    """``splitting._read_back``: ω refined so that the next step reads back Π from it."""
     r = quat_rotate(quat_conjugate(qp), w)
-    back = math.sqrt((moments[0] * r[0]) ** 2 + (moments[1] * r[1]) ** 2 + (moments[2] * r[2]) ** 2)
-    f = math.sqrt(pi[0] ** 2 + pi[1] ** 2 + pi[2] ** 2) / back
-    return (w[0] * f, w[1] * f, w[2] * f)
+    e = (
+        (moments[0] * r[0] - pi[0]) * inv[0],
+        (moments[1] * r[1] - pi[1]) * inv[1],
+        (moments[2] * r[2] - pi[2]) * inv[2],
+    )
+    c = quat_rotate(qp, e)
+    return (w[0] - c[0], w[1] - c[1], w[2] - c[2])
 
 
 # --- integrator templates (``splitting._strang`` with the exact rotation) ----------------------
@@ -320,7 +324,7 @@ def exact_strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
     inv = vec3(bd, b, INV_MOMENTS)
     qp, pi = exact_rotation(moments, qp, pi, dt)
     w = quat_rotate(qp, (pi[0] * inv[0], pi[1] * inv[1], pi[2] * inv[2]))
-    w = read_back(moments, qp, pi, w)
+    w = read_back(moments, inv, qp, pi, w)
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
     rot = quat_to_matrix(q)
     f, t = wrench(b, x, q, v, w, fa, ta, fds)
