@@ -333,8 +333,14 @@ class Scene:
         """Total world angular momentum about a world point: Σ (x − o) × m v + M ω."""
         x, q, v, w = self._arrays(state)
         about = _finite(about, "about")
-        if about.shape != (3,):
-            raise ValueError(f"about must be a 3-vector, got shape {about.shape}")
+        try:
+            ok = about.shape[-1] == 3 and np.broadcast_shapes(about.shape, x.shape) == x.shape
+        except ValueError:
+            ok = False
+        if not ok:
+            raise ValueError(
+                f"about must be a 3-vector or broadcast to {x.shape}, got {about.shape}"
+            )
         spin = self.model.apply_inertia(quat_to_matrix(q), w)
         orbit = cross(x - about, v)
         return np.sum(spin + self.model.mass[:, None] * orbit, axis=-2)
@@ -366,7 +372,8 @@ class Scene:
 def _norm2(q: np.ndarray) -> np.ndarray:
     """|q|² summed in a fixed order: a SIMD reduction's rounding can depend on the arrays'
     memory alignment, which would make a step's result depend on where its input lives."""
-    return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
+    with np.errstate(over="ignore"):  # an overflow to infinity is then rejected, not noted
+        return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
 
 
 def _kernel_array(arr: np.ndarray, flat: tuple[int, ...]) -> np.ndarray:

@@ -4,7 +4,8 @@ The ``sim_backend`` fixture is autouse and parametrised per test as ``[numpy]`` 
 ``[compiled]``: it sets ``RIGID_ENV_BACKEND`` for the scenes a test builds (``numpy``, or
 ``auto``, which compiles every scene whose stages all have kernels and runs the rest on numpy).
 A scene that passes ``backend=`` itself keeps it. Modules whose scenes all have body–body
-contacts (no compiled kernels) run once, on numpy: a ``[compiled]`` run would repeat it.
+contacts (no compiled kernels) run once, on numpy: a ``[compiled]`` run would repeat it; so do
+the modules that choose their backends themselves.
 """
 
 import pytest
@@ -12,6 +13,7 @@ import pytest
 BACKENDS = ("numpy", "compiled")
 NUMPY_ONLY = {
     "test_box_box.py": "body–body contact scenes step with numpy on either backend",
+    "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
 }
 
 

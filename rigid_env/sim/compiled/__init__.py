@@ -82,7 +82,9 @@ add the module to ``backend.KERNEL_MODULES``.
 **The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
 source of a small module, ``element(e, st, data)`` = ``steps.begin`` (working state, zeroed
 scratch), each kernel in stage order with ``data[i]``, then ``steps.finite``; ``step(st, data)``
-loops over the batch (``step_parallel`` with ``prange`` threads when the scene opts in). It
+loops over the batch (``nogil``; with ``backend="compiled-threads"`` the driver runs it on one
+contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
+its parallel loop bodies accept no tuples of arrays). It
 writes the module to a cache directory under a name hashed from that source and the kernel
 sources, imports it, and numba caches the compiled driver to disk (``cache=True``): one compile
 per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step

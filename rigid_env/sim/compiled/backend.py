@@ -3,8 +3,9 @@
 ``RIGID_ENV_BACKEND`` (or ``Scene(..., backend=)``) is ``"numpy"``, ``"compiled"`` or ``"auto"``
 (the default): ``auto`` uses the compiled driver when numba imports and every stage of the scene
 has a kernel, else numpy; ``compiled`` insists and raises ``ValueError`` when it cannot;
-``numpy`` never compiles. Threads (``prange`` over the batch) are opt-in: ``"compiled-threads"``
-(same per-element arithmetic, so the same bits; worth it only for large batches).
+``numpy`` never compiles. Threads are opt-in: ``"compiled-threads"`` runs
+the compiled step on one chunk of the batch per core (the same per-element arithmetic, so the
+same bits); worth it only for large batches.
 """
 
 from __future__ import annotations
