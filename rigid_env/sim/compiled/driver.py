@@ -76,6 +76,8 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
         templates.append(module)
     for i, f in enumerate(forces):
         lines.append(f"from {f.module} import {f.name} as force_{i}")
+        if f.damping is not None:
+            lines.append(f"from {f.module} import {f.damping} as damping_{i}")
     for i, k in enumerate(kernels):
         if not k.template:
             lines.append(f"from {k.module} import {k.name} as stage_{i}")
@@ -88,6 +90,9 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
             "    t = (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])",
         ]
     lines.append("    return f, t")
+    lines += ["", "", "@njit(cache=True)", "def damping(b, x, q, fds, out):"]
+    damped = [i for i, f in enumerate(forces) if f.damping is not None]
+    lines += [f"    damping_{i}(b, x, q, fds[{i}], out)" for i in damped] or ["    return"]
     for module in templates:
         mod = importlib.import_module(module)
         for name in mod.TEMPLATES:

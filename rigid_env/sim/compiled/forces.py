@@ -12,7 +12,7 @@ from numba import njit
 from ..model import Model
 from . import bodies
 from .registry import ForceKernel, register_force
-from .rotation import cross, quat_rotate, quat_to_matrix
+from .rotation import cross, matmul, quat_rotate, quat_to_matrix, transpose
 
 _ZERO = (0.0, 0.0, 0.0)
 
@@ -21,6 +21,20 @@ _ZERO = (0.0, 0.0, 0.0)
 def gravity(b, x, q, v, w, fd):
     weight = fd[0]  # (n, 3): m g per body
     return (weight[b, 0], weight[b, 1], weight[b, 2]), (0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def damping_matrix(b, x, q, fd, out):
+    """``forces.Damping.damping_matrix``: diag(γ_v m I, γ_ω R M0 Rᵀ), added into ``out``."""
+    bd, rates = fd
+    gv, gw = rates[0], rates[1]
+    a = gv * bd[b, bodies.MASS]
+    rot = quat_to_matrix(q)
+    inertia = matmul(matmul(rot, bodies.matrix(bd, b, bodies.INERTIA)), transpose(rot))
+    for i in range(3):
+        out[i, i] += a
+        for j in range(3):
+            out[3 + i, 3 + j] += gw * inertia[3 * i + j]
 
 
 @njit(cache=True)
@@ -80,6 +94,40 @@ def spring_force(sd, s, x, q, v, w):
 
 
 @njit(cache=True)
+def spring_damping_matrix(b, x, q, fd, out):
+    """``forces.Springs.damping_matrix``: Σ Jᵀ C J over body b's springs, added into ``out``."""
+    sd = fd[0]
+    for s in range(sd.shape[0]):
+        if int(sd[s, S_BODY]) != b or sd[s, S_C] == 0.0:
+            continue
+        attach = (sd[s, S_ATTACH], sd[s, S_ATTACH + 1], sd[s, S_ATTACH + 2])
+        c, rest = sd[s, S_C], sd[s, S_REST]
+        arm = quat_rotate(q, attach)
+        d = (
+            x[0] + arm[0] - sd[s, S_ANCHOR],
+            x[1] + arm[1] - sd[s, S_ANCHOR + 1],
+            x[2] + arm[2] - sd[s, S_ANCHOR + 2],
+        )
+        length = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        safe = length if length > 0 else 1.0
+        unit = (d[0] / safe, d[1] / safe, d[2] / safe)
+        jac = np.zeros((3, 6))  # J = [I, −(R r)*]
+        for i in range(3):
+            jac[i, i] = 1.0
+        jac[0, 4], jac[0, 5] = arm[2], -arm[1]
+        jac[1, 3], jac[1, 5] = -arm[2], arm[0]
+        jac[2, 3], jac[2, 4] = arm[1], -arm[0]
+        for i in range(6):
+            for j in range(6):
+                acc = 0.0
+                for a in range(3):
+                    for bb in range(3):
+                        cab = c * (unit[a] * unit[bb]) if rest > 0 else (c if a == bb else 0.0)
+                        acc += jac[a, i] * cab * jac[bb, j]
+                out[i, j] += acc
+
+
+@njit(cache=True)
 def springs(b, x, q, v, w, fd):
     """Sum over the springs on body b, in spring order (numpy's incidence sum)."""
     sd = fd[0]
@@ -106,9 +154,15 @@ def _gravity(scene):
 def _damping(scene):
     m = scene.model
     rates = np.array([m.linear_damping, m.angular_damping])
-    return ForceKernel(_MODULE, "damping", (bodies.body_data(m), rates))
+    return ForceKernel(_MODULE, "damping", (bodies.body_data(m), rates), damping="damping_matrix")
 
 
 @register_force("springs")
 def _springs(scene):
-    return ForceKernel(_MODULE, "springs", (spring_table(scene.model),))
+    damped = any(sp.damping for sp in scene.model.springs)
+    return ForceKernel(
+        _MODULE,
+        "springs",
+        (spring_table(scene.model),),
+        damping="spring_damping_matrix" if damped else None,
+    )

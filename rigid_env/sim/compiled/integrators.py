@@ -49,10 +49,13 @@ from .rotation import (
     quat_to_matrix,
     rotate,
     rotate_inverse,
+    skew,
+    transpose,
 )
 
-# The composed force kernel: defined in each generated driver module, where the templates run.
-wrench = None
+# The composed force kernel and damping matrix: defined in each generated driver module, where
+# the templates run.
+wrench = damping = None
 
 TEMPLATES = (
     "euler_velocity",
@@ -62,6 +65,7 @@ TEMPLATES = (
     "rk4_derivative",
     "rk4",
     "strang",
+    "implicit_half_kick",
     "splitting",
     "splitting4",
     "implicit_gyro_velocity",
@@ -359,17 +363,41 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
     qp, pi = free_rotation(inv, qp, pi, dt)
     w = quat_rotate(qp, (pi[0] * inv[0], pi[1] * inv[1], pi[2] * inv[2]))
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
-    rot = quat_to_matrix(q)
-    # The closing half kick (``splitting._half_kick``), with a Heun corrector when the forces
-    # depend on velocity.
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
-    v_end = kick(v, 0.5 * dt, im, f)
-    w_end = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, rot, t))
     if velocity_dependent:
-        f, t = wrench(b, x, q, v_end, w_end, fa, ta, fds)
-        v_end = kick(v, 0.5 * dt, im, f)
-        w_end = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, rot, t))
-    return x, q, v_end, w_end
+        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt)
+        return x, q, v, w
+    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    v = kick(v, 0.5 * dt, im, f)
+    w = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, quat_to_matrix(q), t))
+    return x, q, v, w
+
+
+def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt):
+    """``splitting._implicit_half_kick``: (M + ½ Δt C) u⁺ = M u + ½ Δt F(x, q, 0), one 6×6
+    solve, C the sum of the velocity-dependent terms' damping matrices (``damping``, defined
+    with ``wrench`` in the driver)."""
+    zero = (0.0, 0.0, 0.0)
+    f0, t0 = wrench(b, x, q, zero, zero, fa, ta, fds)
+    system = np.zeros((6, 6))
+    damping(b, x, q, fds, system)
+    h = 0.5 * dt
+    rot = quat_to_matrix(q)
+    inertia = matmul(matmul(rot, bodies.matrix(bd, b, bodies.INERTIA)), transpose(rot))
+    m = bd[b, bodies.MASS]
+    for i in range(6):
+        for j in range(6):
+            system[i, j] = h * system[i, j]
+    for i in range(3):
+        system[i, i] += m
+        for j in range(3):
+            system[3 + i, 3 + j] += inertia[3 * i + j]
+    iw = rotate(inertia, w)
+    rhs = np.empty(6)
+    for i in range(3):
+        rhs[i] = m * v[i] + h * f0[i]
+        rhs[3 + i] = iw[i] + h * t0[i]
+    u = solve6(system, rhs)
+    return (u[0], u[1], u[2]), (u[3], u[4], u[5])
 
 
 def splitting(e, st, d):
@@ -595,16 +623,6 @@ def implicit_position(e, st, d):
         x = translate(st, e, b, x, v, dt)
         q = quat_multiply(quat_exp((dt * w[0], dt * w[1], dt * w[2])), q)
         store(st, e, b, x, q, v, w)
-
-
-@njit(cache=True)
-def transpose(m):
-    return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
-
-
-@njit(cache=True)
-def skew(w):
-    return (0.0, -w[2], w[1], w[2], 0.0, -w[0], -w[1], w[0], 0.0)
 
 
 def integrator_data(scene) -> tuple:

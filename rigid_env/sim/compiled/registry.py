@@ -23,11 +23,16 @@ class Kernel:
 
 @dataclass(frozen=True)
 class ForceKernel:
-    """A body-level force term ``module.name(b, x, q, v, w, fd) -> (f, t)`` and its data."""
+    """A body-level force term ``module.name(b, x, q, v, w, fd) -> (f, t)`` and its data.
+
+    ``damping``: for a velocity-dependent term, the name of ``module.damping(b, x, q, fd, out)``
+    adding its 6×6 damping matrix C (``(F, T) = (F, T)|ᵤ₌₀ − C u``, u = (v, ω)) into ``out``.
+    """
 
     module: str
     name: str
     data: tuple = field(default=())
+    damping: str | None = None
 
 
 Factory = Callable[[object], "Kernel | tuple[Kernel, ...] | None"]

@@ -205,3 +205,14 @@ def matrix_to_quat(m):
     q = (0.5 * q[0], 0.5 * q[1], 0.5 * q[2], 0.5 * q[3])
     sign = -1.0 if q[3] < 0 else 1.0
     return (q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign)
+
+
+@njit(cache=True)
+def transpose(m):
+    return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
+
+
+@njit(cache=True)
+def skew(w):
+    """The cross-product matrix ``ω*`` as a 9-tuple."""
+    return (0.0, -w[2], w[1], w[2], 0.0, -w[0], -w[1], w[0], 0.0)
