@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np  # noqa: F401 (used by the templates)
 from numba import njit
 
 from ..elliptic import _Q_RF, _Q_RJ, _SERIES_RADIUS, _SN_SERIES, MAX_DUPLICATIONS
 from ..integrators.splitting import _W0, _W1
+from . import bodies  # noqa: F401 (used by the templates)
 from .bodies import (  # noqa: F401 (used by the templates)
     INV_MASS,
     INV_MOMENTS,
@@ -26,14 +28,24 @@ from .bodies import (  # noqa: F401 (used by the templates)
     vec3,
     vec4,
 )
-from .integrators import axpy, kick, load, store  # noqa: F401 (used by the templates)
+from .integrators import (  # noqa: F401 (used by the templates)
+    axpy,
+    implicit_half_kick,
+    kick,
+    load,
+    matmul,
+    rotate,
+    solve6,
+    store,
+    transpose,
+)
 from .registry import register_integrator
 from .rotation import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix  # noqa: F401
 
 # The composed force kernel: defined in each generated driver module, where the templates run.
 wrench = None
 
-TEMPLATES = ("exact_strang", "exact", "exact4")
+TEMPLATES = ("implicit_half_kick", "exact_strang", "exact", "exact4")
 
 SN1 = _SN_SERIES[1]
 SN2 = _SN_SERIES[2]
@@ -326,15 +338,13 @@ def exact_strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
     w = quat_rotate(qp, (pi[0] * inv[0], pi[1] * inv[1], pi[2] * inv[2]))
     w = read_back(moments, inv, qp, pi, w)
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
-    rot = quat_to_matrix(q)
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
-    v_end = kick(v, 0.5 * dt, im, f)
-    w_end = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, rot, t))
     if velocity_dependent:
-        f, t = wrench(b, x, q, v_end, w_end, fa, ta, fds)
-        v_end = kick(v, 0.5 * dt, im, f)
-        w_end = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, rot, t))
-    return x, q, v_end, w_end
+        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt)
+        return x, q, v, w
+    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    v = kick(v, 0.5 * dt, im, f)
+    w = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, quat_to_matrix(q), t))
+    return x, q, v, w
 
 
 def exact(e, st, d):
