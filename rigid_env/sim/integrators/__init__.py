@@ -7,8 +7,8 @@
 | `rk4`           | 4     | nothing exactly; drift O(Δt⁴)     | 4 force evaluations | long runs, stiff terms |
 | `splitting`     | 2     | world L exactly; energy bounded   | 5 axis rotations    | phase error O(Δt²)     |
 | `splitting4`    | 4     | as `splitting`                    | 3 × `splitting`     | large ω Δt             |
-| `exact`         | 2     | exact flow: rounding only         | elliptic functions  | (exact without torque) |
-| `exact4`        | 4     | as `exact`                        | 3 × `exact`         | phase error O(Δt⁴ T)  |
+| `exact`         | 2     | the exact flow: rounding only     | sn cn dn, R_F, R_J  | torques: error O(Δt²)  |
+| `exact4`        | 4     | as `exact`                        | 3 × `exact`         | torques: error O(Δt⁴)  |
 | `implicit_gyro` | 1     | never blows up; loses energy      | one 3×3 solve       | damps fast spin        |
 | `implicit`      | 1     | stiff springs bounded (any k Δt²) | one 6×6 solve/body  | damps resolved springs |
 
