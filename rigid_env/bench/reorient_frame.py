@@ -43,7 +43,7 @@ CONFIGS = (
 )
 
 
-def _episodes(config, n: int, seed: int, actions: np.ndarray | None):
+def _episodes(config, n: int, seed: int, actions: np.ndarray | None, frames: int = FRAMES):
     """Orientation (frames + 1, n, 4), start (q0, ω0 world) and the task, for n episodes."""
     integrator, dt, skip = config
     task = ReorientTask(
@@ -53,7 +53,7 @@ def _episodes(config, n: int, seed: int, actions: np.ndarray | None):
     task.reset_envs(np.arange(n), np.stack([task.draw(rng) for _ in range(n)]))
     q = [task.state.orientation[:, 0].copy()]
     start = (q[0].copy(), task.state.angular_velocity[:, 0].copy())
-    for k in range(FRAMES):
+    for k in range(frames):
         task.step(np.zeros((n, 3)) if actions is None else actions[k])
         q.append(task.state.orientation[:, 0].copy())
     return np.array(q), start, task
@@ -114,17 +114,17 @@ def _exact_body_kicks(task, start, actions: np.ndarray) -> np.ndarray:
     return np.array(qs)
 
 
-def accuracy(n: int, seed: int) -> list[dict]:
+def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS) -> list[dict]:
     rows = []
     rng = np.random.default_rng(seed + 1)
-    actions = rng.uniform(-1, 1, (FRAMES, n, 3))
+    actions = rng.uniform(-1, 1, (frames, n, 3))
     for label, acts in (("tumble (action 0)", None), ("random actions", actions)):
         reference = None
-        for config in CONFIGS:
-            q, start, task = _episodes(config, n, seed, acts)
+        for config in configs:
+            q, start, task = _episodes(config, n, seed, acts, frames)
             if reference is None:
                 reference = (
-                    _reference_free(task, start, FRAMES)
+                    _reference_free(task, start, frames)
                     if acts is None
                     else _reference_driven(task, start, acts)
                 )
