@@ -65,7 +65,10 @@ def carlson_rf_rj(x, y, z, p) -> tuple[np.ndarray, np.ndarray]:
     # Each element stops at its own step count, so a batch gives bit for bit the results of its
     # elements computed alone (the loop runs to the slowest element).
     for _ in range(MAX_DUPLICATIONS):
-        going = ~((scale * q_f < np.abs(a_f)) & (scale * q_j < np.abs(a_j)))
+        # Non-finite input (an overflowed state) is passed through as NaN for the caller's
+        # divergence check rather than reported as a convergence failure.
+        done = (scale * q_f < np.abs(a_f)) & (scale * q_j < np.abs(a_j))
+        going = ~done & np.isfinite(a_f) & np.isfinite(a_j)
         if not np.any(going):
             break
         sx, sy, sz, sp = np.sqrt(x), np.sqrt(y), np.sqrt(z), np.sqrt(p)
@@ -128,9 +131,7 @@ _SERIES_RADIUS = 2.0**-5
 def halvings(u) -> np.ndarray:
     """Per element, how many times ``u`` must be halved to enter the series' range."""
     a = np.abs(u)
-    if not np.all(np.isfinite(a)):
-        raise ValueError("jacobi_sn_cn_dn: u must be finite")
-    _, exponent = np.frexp(a / _SERIES_RADIUS)  # a / radius = f 2^e, f in [0.5, 1)
+    _, exponent = np.frexp(np.where(np.isfinite(a), a, 0.0) / _SERIES_RADIUS)  # a / radius = f 2^e, f in [0.5, 1)
     return np.maximum(exponent, 0)
 
 
@@ -169,4 +170,7 @@ def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         norm = np.hypot(s_new, c_new)
         going = k < n
         s, c = np.where(going, s_new / norm, s), np.where(going, c_new / norm, c)
+    # A non-finite u (an overflowed state upstream) gives NaN, for the caller's divergence check.
+    bad = ~np.isfinite(u)
+    s, c = np.where(bad, np.nan, s), np.where(bad, np.nan, c)
     return s, c, np.sqrt(c * c + mc * s * s)

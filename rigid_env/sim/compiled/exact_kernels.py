@@ -86,6 +86,9 @@ def carlson_rf_rj(x, y, z, p):
         if scale * q_f < abs(a_f) and scale * q_j < abs(a_j):
             converged = True
             break
+        if not (math.isfinite(a_f) and math.isfinite(a_j)):  # NaN out, as numpy
+            converged = True
+            break
         sx, sy, sz, sp = math.sqrt(x), math.sqrt(y), math.sqrt(z), math.sqrt(p)
         lam = sx * sy + sy * sz + sz * sx
         d = (sp + sx) * (sp + sy) * (sp + sz)
@@ -217,6 +220,15 @@ def unpermute(order, sg, v):
 @njit(cache=True)
 def free_flow(moments, m, h):
     """``exact.free_flow`` for one body: (m(h), dq) with q(h) = q(0) ∘ dq."""
+    _, e = math.frexp(max(abs(m[0]), abs(m[1]), abs(m[2])))
+    unit = (math.ldexp(m[0], -e), math.ldexp(m[1], -e), math.ldexp(m[2], -e))
+    m_new, dq = unit_flow(moments, unit, math.ldexp(h, e))
+    return (math.ldexp(m_new[0], e), math.ldexp(m_new[1], e), math.ldexp(m_new[2], e)), dq
+
+
+@njit(cache=True)
+def unit_flow(moments, m, h):
+    """``exact._unit_flow``: the flow for max|m| in [½, 1) (or m = 0)."""
     omega = (m[0] / moments[0], m[1] / moments[1], m[2] / moments[2])
     if (
         m[1] * omega[2] - m[2] * omega[1] == 0.0
@@ -244,6 +256,9 @@ def free_flow(moments, m, h):
     b2 = math.sqrt(i2 * d3 / (i3 - i2))
     b3 = math.sqrt(i3 * d1 / (i3 - i1))
     big_g = math.sqrt(m1**2 + m2**2 + m3**2)
+    if not (math.isfinite(big_g) and math.isfinite(d1) and math.isfinite(d3) and big_g > 0):
+        nan = math.nan  # an overflowed state: NaN out, for the driver's divergence check
+        return (nan, nan, nan), (nan, nan, nan, nan)
     lam = math.copysign(1.0, i3 - i1) * math.sqrt((i3 - i2) * d1 / (i1 * i2 * i3))
     nu = i3 * (i2 - i1) / (i1 * (i3 - i2))
     if b1 == 0:

@@ -99,6 +99,17 @@ def free_flow(moments, m, h):
     the attitude: q(h) = q(0) ∘ dq, and |m(h)| = |m| to rounding.
     """
     moments, m = np.broadcast_arrays(np.asarray(moments, float), np.asarray(m, float))
+    # The flow is homogeneous: m(t) = s m̂(s t) and q(t) = q̂(s t) for m̂ = m/s. With s a power
+    # of two near max|m| the scaling is exact, and no square below over- or underflows.
+    _, exponent = np.frexp(np.max(np.abs(m), axis=-1))
+    m = np.ldexp(m, -exponent[..., None])
+    h = np.ldexp(np.broadcast_to(np.asarray(h, float), exponent.shape), exponent)
+    m_new, dq = _unit_flow(moments, m, h)
+    return np.ldexp(m_new, exponent[..., None]), dq
+
+
+def _unit_flow(moments, m, h):
+    """:func:`free_flow` for max|m| in [½, 1) (or m = 0)."""
     omega = m / moments
     constant = np.all(cross(m, omega) == 0.0, axis=-1)
     safe = constant[..., None]
@@ -181,7 +192,7 @@ def free_flow(moments, m, h):
     dq = np.concatenate((dq_vec, dq_s[..., 3:]), axis=-1)
     # Constant motions: Ω fixed in the body, the body turns uniformly about it.
     m_new = np.where(safe, m, m_new)
-    dq = np.where(safe, quat_exp(np.asarray(h, float)[..., None] * omega), dq)
+    dq = np.where(safe, quat_exp(h[..., None] * omega), dq)
     return m_new, dq
 
 
