@@ -311,3 +311,17 @@ def test_compiled_step_agrees_with_numpy(name):
     assert np.all(quat_angle(a.orientation, b.orientation) <= bound)
     assert np.max(np.abs(a.angular_velocity - b.angular_velocity)) <= 8 * bound
     assert np.max(np.abs(a.position - b.position)) <= 1e-15 * steps * 10
+
+
+@pytest.mark.parametrize("power", [-700, -300, 300, 700])
+def test_the_flow_is_homogeneous_for_any_spin_magnitude(power):
+    """m(t) = c m̂(c t): scaling m by a power of two and h by its inverse is exact in floating
+    point, so the results must be bit for bit c times the unscaled ones, with no over- or
+    underflow even where m² is far outside the double range."""
+    moments = np.array([0.2, 0.4, 0.52])
+    m = moments * np.array([0.05, 3.0, -0.4])
+    c = 2.0**power
+    m_ref, dq_ref = free_flow(moments, m, 0.37)
+    m_big, dq_big = free_flow(moments, m * c, 0.37 / c)
+    assert np.array_equal(m_big, m_ref * c)
+    assert np.array_equal(dq_big, dq_ref)
