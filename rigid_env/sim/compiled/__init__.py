@@ -8,7 +8,7 @@ imports and every stage of the scene has a kernel, else numpy).
 
 Kernel conventions (contacts and integrators written by others follow them)
 ---------------------------------------------------------------------------
-Everything is ``@njit(cache=True)``, float64, no ``fastmath`` (results must not depend on the
+Everything is ``@njit(cache=True, error_model="numpy")``, float64, no ``fastmath`` (results must not depend on the
 compiler's reassociation), no allocation in the per-step path where a scalar tuple will do.
 A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
 batch element, on arrays that play the part of the ``StepContext``.
@@ -28,10 +28,10 @@ slot  name         shape               meaning (``StepContext`` field)
                                        contact solve adds its correction, the position update
                                        adds it to x + Δt v
 11    contact      (N, C, CW)          contact slots (``ctx.contacts``): zero before the first
-                                       stage; detection writes, the solve and restitution read
-                                       and write
+                                       stage (fresh per call); detection writes, the solve and
+                                       restitution read and write
 12    report       (N, RW)             per-element figures (``ctx.report``), zero before the
-                                       first stage
+                                       first stage (fresh per call)
 ====  ===========  ==================  ==========================================================
 
 N is the flattened batch, n the bodies of one element, C the scene's contact slots (0 without
@@ -42,8 +42,9 @@ restitution velocity change...; widen ``CONTACT_WIDTH`` in ``layout.py`` if need
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
 at the start-of-step pose as numpy does. ``report`` columns: ``ITERATIONS`` (most iterations a
-solve of this element used this step) and ``CAPPED`` (1.0 if a solve stopped at its cap); the
-scene turns them into ``scene.report`` (``Driver.report``).
+solve of this element used this step), ``CAPPED`` (1.0 if a solve stopped at its cap) and the
+others in ``layout.py``; a kernel that writes them gives its ``Kernel`` a ``report`` function
+that turns the columns into the ``scene.report`` entries its numpy twin writes.
 
 **An element kernel** is ``kernel(e, st, d) -> None``. It reads and writes only row ``e`` of
 the ``st`` arrays (so a batched step equals the same element stepped alone, bit for bit, and

@@ -28,11 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
+from ..scene import ORIENTATION_TOLERANCE
 from . import layout
 from .registry import ForceKernel, Kernel
 
 _PACKAGE = Path(__file__).resolve().parent
+_F64 = np.dtype(np.float64)
 _SOURCES_HASH: str | None = None
+# Every kernel: cached, numpy's floating-point semantics (x/0 gives inf or nan, which the
+# finiteness check reports, as on the numpy path; Python's would raise ZeroDivisionError).
+_JIT = '@njit(cache=True, error_model="numpy")'
+_JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
 
 
 def sources_hash() -> str:
@@ -81,7 +87,7 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
     for i, k in enumerate(kernels):
         if not k.template:
             lines.append(f"from {k.module} import {k.name} as stage_{i}")
-    lines += ["", "", "@njit(cache=True)", "def wrench(b, x, q, v, w, fa, ta, fds):"]
+    lines += ["", "", _JIT, "def wrench(b, x, q, v, w, fa, ta, fds):"]
     lines.append("    f, t = fa, ta")
     for i in range(len(forces)):
         lines += [
@@ -90,30 +96,34 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
             "    t = (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])",
         ]
     lines.append("    return f, t")
-    lines += ["", "", "@njit(cache=True)", "def damping(b, x, q, fds, out):"]
+    lines += ["", "", _JIT, "def damping(b, x, q, fds, out):"]
     damped = [i for i, f in enumerate(forces) if f.damping is not None]
     lines += [f"    damping_{i}(b, x, q, fds[{i}], out)" for i in damped] or ["    return"]
     for module in templates:
         mod = importlib.import_module(module)
         for name in mod.TEMPLATES:
             src = textwrap.dedent(inspect.getsource(getattr(mod, name)))
-            lines += ["", "", "@njit(cache=True)", src.rstrip()]
-    lines += ["", "", "@njit(cache=True)", "def element(e, st, data):"]
-    lines.append("    begin(e, st)")
+            lines += ["", "", _JIT, src.rstrip()]
+    lines += ["", "", _JIT, "def element(e, st, data):"]
+    lines += [f"    if not begin(e, st, {ORIENTATION_TOLERANCE!r}):", "        return 1"]
     for i, k in enumerate(kernels):
         call = k.name if k.template else f"stage_{i}"
         lines.append(f"    {call}(e, st, data[{i}])")
-    lines.append("    return finite(e, st)")
+    lines.append("    return 0 if finite(e, st) else 2")
     lines += [
         "",
         "",
-        "@njit(cache=True, nogil=True)",
+        _JIT_NOGIL,
         "def step(st, data):",
-        "    bad = 0",
+        "    bad_orientation = 0",
+        "    diverged = 0",
         "    for e in range(st[0].shape[0]):",
-        "        if not element(e, st, data):",
-        "            bad += 1",
-        "    return bad",
+        "        verdict = element(e, st, data)",
+        "        if verdict == 1:",
+        "            bad_orientation += 1",
+        "        elif verdict == 2:",
+        "            diverged += 1",
+        "    return bad_orientation, diverged",
     ]
     return "\n".join(lines) + "\n"
 
@@ -156,50 +166,67 @@ class Driver:
         self.threads = threads
         self.workers = os.cpu_count() or 1
         self._pool = None
-        self._zeros: dict = {}
-        self._scratch: dict = {}
+        self._last = None
+        self._entry = None
+        self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
 
-    def zeros(self, shape, flat):
-        """A zero load of the state's shape, as (N, n, 3); shared and never written."""
-        z = self._zeros.get(shape)
-        if z is None:
-            z = self._zeros[shape] = np.zeros(shape).reshape(flat)
-        return z
-
-    @staticmethod
-    def report(report) -> dict:
-        """The step's report from the per-element columns (empty when nothing to say)."""
-        if report.shape[0] == 0 or not report.any():
-            return {}
-        out = {"contact_iterations": int(report[:, layout.ITERATIONS].max())}
-        capped = int(np.count_nonzero(report[:, layout.CAPPED]))
-        if capped:
-            out["contact_capped"] = capped
+    def report(self, columns) -> dict:
+        """``scene.report`` from the step's report columns, by the kernels that wrote them."""
+        out = {}
+        for fn in self._reporters:
+            out.update(fn(columns))
         return out
 
-    def scratch(self, x0):
-        """Per batch size: displacement, contact slots and report (overwritten every step)."""
-        s = self._scratch.get(x0.shape)
-        if s is None:
-            size = x0.shape[0]
-            s = self._scratch[x0.shape] = (
-                np.zeros(x0.shape),
-                np.zeros((size, self.slots, layout.CONTACT_WIDTH)),
-                np.zeros((size, layout.REPORT_WIDTH)),
-            )
-        return s
+    def _buffers(self, shape):
+        """Per state shape: the kernels' (N, n, ·) shapes, a zero load (shared, never written),
+        displacement, contact slots and report (overwritten every step)."""
+        size = int(np.prod(shape[:-2], dtype=np.int64))
+        flat = (size, shape[-2], 3)
+        buffers = (
+            flat,
+            (size, shape[-2], 4),
+            np.zeros(flat),
+            np.zeros(flat),
+            np.zeros((size, self.slots, layout.CONTACT_WIDTH)),
+            np.zeros((size, layout.REPORT_WIDTH)),
+        )
+        self._last = (shape, buffers)
+        return buffers
 
     def __call__(self, x0, q0, v0, w0, force, torque):
+        """One step from the state arrays (any batch shape) and the validated loads (None or
+        broadcastable). Returns the new arrays as (N, n, ·), the report array, and the counts
+        of elements with a quaternion off unit length and with a non-finite result."""
+        shape = x0.shape
+        last = self._last
+        flat, qflat, zero, disp, contact, report = (
+            last[1] if last is not None and last[0] == shape else self._buffers(shape)
+        )
+        if len(shape) != 3:
+            x0, q0, v0, w0 = x0.reshape(flat), q0.reshape(qflat), v0.reshape(flat), w0.reshape(flat)
+        x0, q0, v0, w0 = _plain(x0), _plain(q0), _plain(v0), _plain(w0)
+        if self.slots:
+            # Contact stages write the scratch: fresh zeros per call, so concurrent steps of
+            # one scene (threads) cannot mix. Without contacts nothing writes it (zeros).
+            disp, contact, report = (
+                np.empty_like(disp),
+                np.zeros_like(contact),
+                np.zeros_like(report),
+            )
+        force = zero if force is None else _load(force, shape, flat)
+        torque = zero if torque is None else _load(torque, shape, flat)
         x, q, v, w = np.empty_like(x0), np.empty_like(q0), np.empty_like(v0), np.empty_like(w0)
-        disp, contact, report = self.scratch(x0)
         st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report)
-        if self.threads and x0.shape[0] > 1:
+        if self.threads and flat[0] > 1:
             bad = self._threaded(st)
+        elif self._entry is not None:
+            bad = self._entry(st, self.data)
         else:
             bad = self.module.step(st, self.data)
+            self._entry = _entry_point(self.module.step)
         return x, q, v, w, report, bad
 
-    def _threaded(self, st) -> int:
+    def _threaded(self, st) -> tuple[int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
         Elements are independent, so the bits are those of the serial loop."""
         size = st[0].shape[0]
@@ -209,9 +236,40 @@ class Driver:
             tuple(a[lo:hi] for a in st) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
         ]
         step, data = self.module.step, self.data
-        return sum(self.pool().map(lambda chunk: step(chunk, data), chunks))
+        counts = list(self.pool().map(lambda chunk: step(chunk, data), chunks))
+        return sum(c[0] for c in counts), sum(c[1] for c in counts)
 
     def pool(self):
         if self._pool is None:
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="rigid_env")
         return self._pool
+
+
+def _entry_point(dispatcher):
+    """The compiled function behind a dispatcher with exactly one signature, callable without
+    the dispatcher's type resolution (~1 µs of a batch-1 step). Safe here because ``_plain``
+    and the driver's own buffers give every call the same argument types; None (use the
+    dispatcher) if numba's internals differ from what this expects."""
+    try:
+        (signature,) = dispatcher.signatures
+        return dispatcher.overloads[signature].entry_point
+    except (AttributeError, KeyError, ValueError):
+        return None
+
+
+def _plain(arr: np.ndarray) -> np.ndarray:
+    """``arr`` as the kernels take it: float64, C-contiguous and writable (one compiled type)."""
+    flags = arr.flags
+    if flags.c_contiguous and flags.writeable and arr.dtype is _F64:
+        return arr
+    return np.array(arr, dtype=np.float64, order="C")
+
+
+def _load(arr: np.ndarray, shape, flat) -> np.ndarray:
+    """An applied load (broadcastable to the state's shape) as a fresh or plain (N, n, 3)."""
+    if arr.shape == shape:
+        arr = _plain(arr)
+        return arr if shape == flat else arr.reshape(flat)
+    full = np.empty(flat)
+    (full if shape == flat else full.reshape(shape))[...] = arr
+    return full

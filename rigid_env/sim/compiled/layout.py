@@ -20,7 +20,10 @@ BODY = 4  # body index (float)
 SOLVER = 5
 CONTACT_WIDTH = 16
 
-# Columns of ``report``.
-ITERATIONS = 0  # most iterations a solve of this element used this step
-CAPPED = 1  # 1.0 if a solve stopped at its iteration cap
-REPORT_WIDTH = 4
+# Columns of ``report`` (the contact solve's; see ``contacts.stages.ContactReport``).
+ENGAGED = 0  # 1.0 if the element had a contact within reach this step
+ITERATIONS = 1  # iterations its solve used
+IMPACTS = 2  # impact events it resolved
+CAPPED = 3  # 1.0 if its solve stopped at a cap instead of converging
+UNPAID_ENERGY = 4  # energy excess (J) the guard could not remove
+REPORT_WIDTH = 8

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Kernel:
@@ -12,6 +14,9 @@ class Kernel:
 
     ``template``: the function is undecorated source calling ``wrench`` (an integrator), copied
     into the generated driver. ``slots``: contact slots it writes (detection), per element.
+    ``report``: for a kernel that writes ``report`` columns, ``report(columns) -> dict`` turns
+    the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy twin
+    writes ``ctx.report``).
     """
 
     module: str
@@ -19,6 +24,7 @@ class Kernel:
     data: tuple = ()
     template: bool = False
     slots: int = 0
+    report: Callable[[np.ndarray], dict] | None = None
 
 
 @dataclass(frozen=True)
