@@ -131,7 +131,9 @@ _SERIES_RADIUS = 2.0**-5
 def halvings(u) -> np.ndarray:
     """Per element, how many times ``u`` must be halved to enter the series' range."""
     a = np.abs(u)
-    _, exponent = np.frexp(np.where(np.isfinite(a), a, 0.0) / _SERIES_RADIUS)  # a / radius = f 2^e, f in [0.5, 1)
+    _, exponent = np.frexp(
+        np.where(np.isfinite(a), a, 0.0) / _SERIES_RADIUS
+    )  # a / radius = f 2^e, f in [0.5, 1)
     return np.maximum(exponent, 0)
 
 
