@@ -37,7 +37,7 @@ DT = 0.01
 
 # Free-body long runs: these integrators run LONG_STEPS (10⁶ in the full preset), the others a
 # tenth; each runs a batch of initial spins at once (little more than one costs).
-LONG_INTEGRATORS = ("splitting", "implicit_gyro")
+LONG_INTEGRATORS = ("splitting", "exact", "implicit_gyro")
 LONG_SPINS = np.array(
     [scenes.DZHANIBEKOV_OMEGA, scenes.TUMBLE_OMEGA, (4.0, 0.1, 0.1), (0.1, 0.2, 5.0)]
 )[:, None, :]

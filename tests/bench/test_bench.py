@@ -94,8 +94,13 @@ def test_accuracy_records_hold_errors_and_costs(runs):
 def test_observed_orders_match_theory(runs):
     # The tolerance: |observed - theoretical| <= 0.3. The tiny preset's dt pairs sit in
     # each method's asymptotic range on the 1 s Dzhanibekov run (errors 1e-9 .. 1e-2 rad).
+    # The exact-flow methods are exact on the torque-free problem (rounding only, no order to
+    # fit there); their order shows on the next problem with a force (the damped spring).
     for name, info in runs["accuracy"]["observed_order"].items():
-        assert info["observed_on"] == "dzhanibekov", name
+        if name in ("exact", "exact4"):
+            assert info["by_scene"]["dzhanibekov"] is None, name
+        else:
+            assert info["observed_on"] == "dzhanibekov", name
         assert abs(info["observed"] - info["theoretical"]) <= 0.3, (name, info)
 
 

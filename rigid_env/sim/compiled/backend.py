@@ -21,7 +21,7 @@ import importlib
 
 BACKENDS = ("auto", "numpy", "compiled", "compiled-threads")
 # Modules whose import registers kernels (package-relative); a new kernel module goes here.
-KERNEL_MODULES = ("forces", "integrators", "ground")
+KERNEL_MODULES = ("forces", "integrators", "exact_kernels", "ground")
 
 
 def numba_available() -> bool:

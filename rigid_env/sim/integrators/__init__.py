@@ -7,6 +7,8 @@
 | `rk4`           | 4     | nothing exactly; drift O(Δt⁴)     | 4 force evaluations | long runs, stiff terms |
 | `splitting`     | 2     | world L exactly; energy bounded   | 5 axis rotations    | phase error O(Δt²)     |
 | `splitting4`    | 4     | as `splitting`                    | 3 × `splitting`     | large ω Δt             |
+| `exact`         | 2     | the exact flow: rounding only     | sn cn dn, R_F, R_J  | torques: error O(Δt²)  |
+| `exact4`        | 4     | as `exact`                        | 3 × `exact`         | torques: error O(Δt⁴)  |
 | `implicit_gyro` | 1     | never blows up; loses energy      | one 3×3 solve       | damps fast spin        |
 | `implicit`      | 1     | stiff springs bounded (any k Δt²) | one 6×6 solve/body  | damps resolved springs |
 
@@ -21,10 +23,10 @@ and add the module to ``_MODULES`` below; every table derives from ``RECORDS``.
 
 from __future__ import annotations
 
-from . import euler, implicit, implicit_gyro, rk4, splitting
+from . import euler, exact, implicit, implicit_gyro, rk4, splitting
 from .common import INTEGRATE, POSITION, VELOCITY, Integrator
 
-_MODULES = (euler, rk4, splitting, implicit_gyro, implicit)
+_MODULES = (euler, rk4, splitting, exact, implicit_gyro, implicit)
 
 RECORDS: dict[str, Integrator] = {r.name: r for m in _MODULES for r in m.RECORDS}
 ORDERS: dict[str, int] = {name: r.order for name, r in RECORDS.items()}
