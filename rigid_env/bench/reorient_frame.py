@@ -137,7 +137,7 @@ def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS) -> list[d
                     "max": float(worst.max()),
                 }
             )
-        if acts is not None:
+        if acts is not None and reference is not None:
             worst = quat_angle(_exact_body_kicks(task, start, acts), reference).max(axis=0)
             rows.append(
                 {
@@ -154,15 +154,16 @@ def speed(config, num_envs: int, seconds: float, seed: int) -> tuple[float, floa
     integrator, dt, skip = config
     kwargs = dict(integrator=integrator, dt=dt, frame_skip=skip)
     single = gym.make("RigidEnv/Reorient-v0", **kwargs)
-    steps, wall, _ = env_speed._run(single, single.action_space, seconds, seed)
     vec = gym.make_vec(
         "RigidEnv/Reorient-v0",
         num_envs=num_envs,
         vectorization_mode="vector_entry_point",
         **kwargs,
     )
-    vsteps, vwall, _ = env_speed._run(vec, vec.action_space, seconds, seed)
-    return steps / wall, vsteps * num_envs / vwall
+    return (
+        env_speed.run(single, seconds=seconds, seed=seed).steps_per_s,
+        env_speed.run(vec, seconds=seconds, seed=seed).steps_per_s,
+    )
 
 
 def main(argv=None) -> None:

@@ -159,8 +159,8 @@ def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     s = np.zeros_like(x)
     for coefficients in reversed(_SN_SERIES):
         poly = np.zeros_like(m)
-        for c in reversed(coefficients):
-            poly = poly * m + c
+        for coefficient in reversed(coefficients):
+            poly = poly * m + coefficient
         s = s * x2 + poly
     s = s * x
     c = np.sqrt((1 - s) * (1 + s))
