@@ -25,7 +25,7 @@ import numpy as np
 
 from rigid_env import cli
 from rigid_env.cli import UsageError
-from rigid_env.files import atomic_open
+from rigid_env.files import atomic_open, write_json
 
 from . import run_folder
 from .policies import BUILTIN, make_policy
@@ -145,6 +145,18 @@ def table_columns(rows: list[dict]) -> tuple[tuple[str, str, str], ...]:
     return COLUMNS + tuple(c for c in EXTRA_COLUMNS if c[1] in rows[0])
 
 
+def table_document(env_id: str, rows: list[dict], episodes: int, seed: int) -> dict:
+    """The rows with their columns as (header, key, format spec): tables are made from it."""
+    columns = [(h, k, f[2:-1]) for h, k, f in table_columns(rows)]
+    return {
+        "env_id": env_id,
+        "episodes": episodes,
+        "eval_seed": seed,
+        "columns": columns,
+        "rows": rows,
+    }
+
+
 def print_table(rows: list[dict], title: str | None = None) -> None:
     """A rich table of evaluation summaries; extra ``final_*`` columns as they come."""
     from rich.console import Console
@@ -171,24 +183,39 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--env", type=cli.env_id, help=f"default: the model's (run.json), else {DEFAULT_ENV}"
     )
-    parser.add_argument("--policy", default="analytic", help="random, zero, analytic or a .zip")
+    parser.add_argument(
+        "--policy",
+        nargs="+",
+        default=["analytic"],
+        help="one or more of random, zero, analytic or a .zip (same seeded episodes for each)",
+    )
     parser.add_argument("--episodes", type=cli.positive_int, default=DEFAULT_EPISODES)
     parser.add_argument("--seed", type=cli.nonnegative_int, default=DEFAULT_SEED)
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead")
-    parser.add_argument("--gif", help="write a clip of episode 0 to this .gif file")
+    parser.add_argument("--json", action="store_true", help="print one JSON object per policy")
+    parser.add_argument("--gif", help="write a clip of episode 0 to this .gif file (one policy)")
+    parser.add_argument(
+        "--out", help="also write the table as JSON (rows and their columns) to this .json file"
+    )
     args = parser.parse_args(argv)
-    env_id = args.env or trained_env(args.policy) or DEFAULT_ENV
+    env_id = args.env or trained_env(args.policy[0]) or DEFAULT_ENV
     if args.gif:
+        if len(args.policy) > 1:
+            raise cli.UsageError("--gif: give one --policy to film, not several")
         cli.writable_file(args.gif, "--gif", (".gif",))
-    summary = evaluate(env_id, args.policy, args.episodes, args.seed)
+    if args.out:
+        cli.writable_file(args.out, "--out", (".json",))
+    rows = [evaluate(env_id, policy, args.episodes, args.seed) for policy in args.policy]
     if args.json:
-        if args.gif:
-            summary["gif"] = str(write_gif(env_id, args.policy, args.gif, args.seed))
-        print(json.dumps(summary))
+        for summary in rows:
+            if args.gif:
+                summary["gif"] = str(write_gif(env_id, summary["policy"], args.gif, args.seed))
+            print(json.dumps(summary))
     else:
-        print_table([summary], f"{env_id}: {args.episodes} episodes from seed {args.seed}")
+        print_table(rows, f"{env_id}: {args.episodes} episodes from seed {args.seed}")
         if args.gif:
-            print(f"clip: {write_gif(env_id, args.policy, args.gif, args.seed)}")
+            print(f"clip: {write_gif(env_id, args.policy[0], args.gif, args.seed)}")
+    if args.out:
+        write_json(Path(args.out), table_document(env_id, rows, args.episodes, args.seed), indent=2)
     return 0
 
 

@@ -26,7 +26,7 @@ from .evaluate import (
     DEFAULT_SEED,
     evaluate,
     print_table,
-    table_columns,
+    table_document,
     write_gif,
 )
 from .train_cli import (
@@ -80,12 +80,7 @@ def main(argv=None) -> int:
     clip = write_gif(env_id, best, run.out / "clip.gif", args.eval_seed)
     wall = time.perf_counter() - start
     summary = {
-        "env_id": env_id,
-        "episodes": args.episodes,
-        "eval_seed": args.eval_seed,
-        # Self-describing: (header, key, format spec) per column, for tables made from this file.
-        "columns": [(h, k, f[2:-1]) for h, k, f in table_columns(rows)],
-        "rows": rows,
+        **table_document(env_id, rows, args.episodes, args.eval_seed),
         "throughput": run.throughput,
         "wall_seconds": round(wall, 1),
     }

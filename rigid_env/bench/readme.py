@@ -45,24 +45,82 @@ def rows_table(doc: dict) -> str:
     return "\n".join(lines)
 
 
-def _bench(command: str, part: str) -> Callable[[dict], str]:
-    def render(doc: dict) -> str:
-        import importlib
+def accuracy_summary(doc: dict) -> str:
+    """Observed orders and the cheapest way to each error target (the full report prints all)."""
+    from . import accuracy, report
 
-        module = importlib.import_module(f"rigid_env.bench.{command}")
-        return getattr(module, part)(doc)
+    orders = [
+        {"integrator": k, **v, **{f"order_{s}": o for s, o in v["by_scene"].items()}}
+        for k, v in doc["observed_order"].items()
+    ]
+    return "\n".join(
+        [
+            "Observed order (slope of log error against log dt in the asymptotic range):",
+            "",
+            report.markdown_table(
+                orders,
+                [
+                    ("integrator", "integrator", ""),
+                    ("theoretical", "theoretical", "d"),
+                    ("observed", "observed", ".2f"),
+                    ("fitted on", "observed_on", ""),
+                    *[(s, f"order_{s}", ".2f") for s in accuracy.ORDER_SCENES],
+                ],
+            ),
+            "",
+            "Cheapest measured integrator and dt reaching each orientation error on the "
+            f"Dzhanibekov flip after {doc['duration_s']:g} s:",
+            "",
+            report.markdown_table(
+                doc["targets"],
+                [
+                    ("target (rad)", "target_rad", ".0e"),
+                    ("batch", "batch", "d"),
+                    ("engine", "engine", ""),
+                    ("integrator", "integrator", ""),
+                    ("dt (s)", "dt", "g"),
+                    ("error (rad)", "error", ".2e"),
+                    ("wall s per body per simulated s", "wall_s_per_body_sim_s", ".2e"),
+                ],
+            ),
+        ]
+    )
 
-    return render
+
+def stability_summary(doc: dict) -> str:
+    from . import stability
+
+    return stability.table(doc)
+
+
+def speed_summary(doc: dict) -> str:
+    """Body-steps per second, the targets, and the environments' step rates."""
+    from . import report, speed
+
+    full = speed.table(doc)
+    first = full.split("\n\nStage breakdown")[0]
+    envs = report.markdown_table(
+        doc["environments"],
+        [
+            ("env", "env", ""),
+            ("mode", "mode", ""),
+            ("N", "num_envs", "d"),
+            ("env steps/s", "env_steps_per_s", ".3g"),
+            ("physics share", "physics_share", ".0%"),
+        ],
+    )
+    return "\n".join(
+        [first, "", *speed.targets(doc), "", "Environment steps per second:", "", envs]
+    )
 
 
 # NAME -> (JSON file in docs/results, renderer)
 RENDERERS: dict[str, tuple[str, Callable[[dict], str]]] = {
-    "accuracy": ("accuracy.json", _bench("accuracy", "summary")),
-    "stability": ("stability.json", _bench("stability", "summary")),
-    "speed": ("speed.json", _bench("speed", "summary")),
+    "accuracy": ("accuracy.json", accuracy_summary),
+    "stability": ("stability.json", stability_summary),
+    "speed": ("speed.json", speed_summary),
     "eval-reorient": ("eval-reorient.json", rows_table),
     "eval-box-landing": ("eval-box-landing.json", rows_table),
-    "sweep-reorient": ("sweep-reorient.json", rows_table),
 }
 
 
