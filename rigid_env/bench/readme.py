@@ -148,7 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     new = render(text, args.results)
     if args.check:
         if new != text:
-            print(f"{args.readme}: generated tables differ from {args.results}; rerun without --check")
+            print(
+                f"{args.readme}: generated tables differ from {args.results}; rerun without --check"
+            )
             return 1
         return 0
     if new != text:
