@@ -202,8 +202,9 @@ def test_ctrl_c_saves_a_checkpoint_that_evaluate_then_runs(tmp_path, capsys):
 def test_sigterm_then_ctrl_c_exits_at_once_and_leaves_whole_files(tmp_path):
     proc = start_training(tmp_path, ["--checkpoint-every", "32"])
     wait_for(tmp_path / "run" / "checkpoint.zip", proc)
+    # Back to back, so the second arrives while the first is still being honoured (with a pause
+    # between them a fast run could finish its graceful stop first and never see a second one).
     proc.send_signal(signal.SIGTERM)
-    time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=60) == 130
     stderr = (tmp_path / "stderr.txt").read_text()
