@@ -11,6 +11,14 @@ separate reads around the whole call, so the parts are disjoint intervals inside
 (their sum falls short of it only by the bookkeeping between them). A stage a scene does not
 list in ``scene.stages`` is never called, which the free body's breakdown shows.
 
+Backends. Every scene and integrator is timed on both backends (``RIGID_ENV_BACKEND`` set to
+``numpy`` and to ``compiled`` while the scene is built; a scene with a stage that has no
+compiled kernel is listed as not available on ``compiled`` rather than silently timed on
+numpy). A compiled step is one kernel call, so its breakdown has three parts: input
+validation, the kernel, output. ``compile_times`` measures, in fresh processes with empty
+numba caches, the first import of a scene's compiled step (compiles) and the next (loads it from
+the disk cache).
+
 (An earlier breakdown timed each stage in isolation at the initial state and called the
 difference "rest of Scene.step": for the landing scene, whose box starts 1 m up, the isolated
 contact stage took its no-contact early exit while the timed steps hit the ground, and the
@@ -19,6 +27,12 @@ splitting integrator's force handling (kicks, body-frame torques) was counted in
 
 from __future__ import annotations
 
+import contextlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
 import tracemalloc
 
@@ -44,10 +58,45 @@ PRESETS = {
         env_batches=(1, 64, 1024, 4096),
         env_steps=30,
     ),
-    "tiny": dict(batches=(1, 64), block_s=0.005, repeats=2, env_batches=(1, 64), env_steps=5),
+    # tiny (the tests) skips the compile-time probe: it compiles from empty caches in fresh
+    # processes, seconds per scene.
+    "tiny": dict(
+        batches=(1, 64),
+        block_s=0.005,
+        repeats=2,
+        env_batches=(1, 64),
+        env_steps=5,
+        compile_probe=False,
+    ),
 }
 DT = 0.01
 BREAKDOWN_BATCH = 1024
+BACKENDS = ("numpy", "compiled")
+
+
+@contextlib.contextmanager
+def backend(name: str):
+    """Scenes built inside use this backend (the factories take none of their own)."""
+    saved = os.environ.get("RIGID_ENV_BACKEND")
+    os.environ["RIGID_ENV_BACKEND"] = name
+    try:
+        yield
+    finally:
+        if saved is None:
+            del os.environ["RIGID_ENV_BACKEND"]
+        else:
+            os.environ["RIGID_ENV_BACKEND"] = saved
+
+
+def build(factory, integrator: str, name: str):
+    """The scene on backend ``name``, or None when that backend cannot run it."""
+    with backend(name):
+        try:
+            return factory(integrator, DT)
+        except ValueError:
+            if name == "numpy":
+                raise
+            return None
 
 
 def _best_time(fn, state, block_s: float, repeats: int) -> float:
@@ -152,7 +201,12 @@ def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) 
     finally:
         scene.timer = saved
     rows = [{"stage": "Scene.step's input validation", "s": best["validate"]}]
-    rows += [{"stage": name, "s": best[name]} for name in scene.stages]
+    if scene.backend == "compiled":
+        rows.append(
+            {"stage": f"compiled kernel ({' → '.join(scene.stages)})", "s": best["compiled"]}
+        )
+    else:
+        rows += [{"stage": name, "s": best[name]} for name in scene.stages]
     rows.append({"stage": "Scene.step's finiteness check", "s": best["check"]})
     rows.append({"stage": "step total (instrumented)", "s": total})
     return rows
@@ -172,41 +226,51 @@ def memory_per_body(scene: sim.Scene, state: sim.State) -> dict:
 
 def measure(preset: str = "full", progress=None) -> dict:
     cfg = PRESETS[preset]
-    records, stages, memory = [], {}, {}
+    records, stages, memory, missing = [], {}, {}, []
     for name, factory, initial, integrators in scene_cases():
         for integrator in integrators:
-            for batch in cfg["batches"]:
-                if progress:
-                    progress(f"speed {name} {integrator} batch={batch}")
-                scene = factory(integrator, DT)
-                state = _initial(scene, initial, batch)
-                t = _best_time(scene.step, state, cfg["block_s"], cfg["repeats"])
-                records.append(
-                    {
-                        "scene": name,
-                        "engine": "rigid_env",
-                        "integrator": integrator,
-                        "dt": DT,
-                        "batch": batch,
-                        "bodies": batch * scene.n_bodies,
-                        "stages": scene.stages,
-                        "s_per_step": t,
-                        "body_steps_per_s": batch * scene.n_bodies / t,
-                    }
-                )
+            for engine_backend in BACKENDS:
+                for batch in cfg["batches"]:
+                    if progress:
+                        progress(f"speed {name} {integrator} {engine_backend} batch={batch}")
+                    scene = build(factory, integrator, engine_backend)
+                    if scene is None:
+                        missing.append(f"{name} {integrator} on {engine_backend}")
+                        break
+                    state = _initial(scene, initial, batch)
+                    t = _best_time(scene.step, state, cfg["block_s"], cfg["repeats"])
+                    records.append(
+                        {
+                            "scene": name,
+                            "engine": "rigid_env",
+                            "backend": scene.backend,
+                            "integrator": integrator,
+                            "dt": DT,
+                            "batch": batch,
+                            "bodies": batch * scene.n_bodies,
+                            "stages": scene.stages,
+                            "s_per_step": t,
+                            "body_steps_per_s": batch * scene.n_bodies / t,
+                        }
+                    )
         default = (
             sim.DEFAULT_INTEGRATOR if sim.DEFAULT_INTEGRATOR in integrators else integrators[0]
         )
-        scene = factory(default, DT)
         batch = min(BREAKDOWN_BATCH, max(cfg["batches"]))
-        state = _initial(scene, initial, batch)
-        stages[name] = {
-            "integrator": default,
-            "batch": batch,
-            "stages": scene.stages,
-            "rows": breakdown(scene, state, cfg["block_s"], cfg["repeats"]),
-        }
-        memory[name] = memory_per_body(scene, _initial(scene, initial, max(cfg["batches"])))
+        for engine_backend in BACKENDS:
+            scene = build(factory, default, engine_backend)
+            if scene is None:
+                continue
+            state = _initial(scene, initial, batch)
+            key = name if engine_backend == "numpy" else f"{name} [{engine_backend}]"
+            stages[key] = {
+                "integrator": default,
+                "backend": scene.backend,
+                "batch": batch,
+                "stages": scene.stages,
+                "rows": breakdown(scene, state, cfg["block_s"], cfg["repeats"]),
+            }
+            memory[key] = memory_per_body(scene, _initial(scene, initial, max(cfg["batches"])))
     if peers.available():
         records += peers.speed(cfg["batches"], cfg["block_s"], DT, progress)
         records += peers.landing_speed(cfg["batches"], cfg["block_s"], DT, progress)
@@ -214,9 +278,65 @@ def measure(preset: str = "full", progress=None) -> dict:
         "records": records,
         "stage_breakdown": stages,
         "memory": memory,
+        "compile": compile_times(progress) if cfg.get("compile_probe", True) else [],
         "environments": env_speed(cfg, progress),
+        "unavailable": [f"{m} (a stage has no kernel)" for m in missing],
         "peers": peers.status(),
     }
+
+
+# --- compile cost ------------------------------------------------------------------------------
+
+_COMPILE_PROBE = """
+import json, sys, time
+start = time.perf_counter()
+from rigid_env import sim
+from rigid_env.sim import scenes
+imported = time.perf_counter()
+kind = sys.argv[1]
+if kind == "landing":
+    scene, initial = scenes.landing_scene(dt=0.01)
+    state = initial(batch_shape=(1,))
+else:
+    scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 1.0), 0.01, integrator=kind)
+    state = scene.initial_state(angular_velocity=(0.3, 3.0, 0.6), batch_shape=(1,))
+built = time.perf_counter()
+scene.step(state)
+done = time.perf_counter()
+print(json.dumps({"backend": scene.backend, "import_s": imported - start,
+                  "scene_s": built - imported, "first_step_s": done - built}))
+"""
+COMPILE_CASES = ("splitting", "landing")
+
+
+def compile_times(progress=None) -> list[dict]:
+    """Seconds to import rigid_env.sim, build a scene and take its first step in a fresh
+    process, with empty numba and driver caches (``cold``: everything compiles) and again with
+    the caches the first run wrote (``cached``)."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {
+            **os.environ,
+            "NUMBA_CACHE_DIR": os.path.join(tmp, "numba"),
+            "RIGID_ENV_CACHE_DIR": os.path.join(tmp, "drivers"),
+            "RIGID_ENV_BACKEND": "auto",
+        }
+        for case in COMPILE_CASES:
+            for run in ("cold", "cached"):
+                if progress:
+                    progress(f"compile {case} {run}")
+                start = time.perf_counter()
+                out = subprocess.run(
+                    [sys.executable, "-c", _COMPILE_PROBE, case],
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                )
+                row = json.loads(out.stdout.strip().splitlines()[-1])
+                row.update(case=case, run=run, process_s=time.perf_counter() - start)
+                rows.append(row)
+    return rows
 
 
 # --- environments ------------------------------------------------------------------------------
@@ -276,12 +396,12 @@ def env_speed(cfg: dict, progress=None) -> list[dict]:
 def table(result: dict) -> str:
     recs = result["records"]
     batches = sorted({r["batch"] for r in recs})
-    keys = list(dict.fromkeys((r["scene"], r["engine"], r["integrator"]) for r in recs))
+    keys = list(dict.fromkeys((r["scene"], _engine(r), r["integrator"]) for r in recs))
     rows = []
     for scene, engine, integrator in keys:
         row = {"scene": scene, "engine": engine, "integrator": integrator}
         for r in recs:
-            if (r["scene"], r["engine"], r["integrator"]) == (scene, engine, integrator):
+            if (r["scene"], _engine(r), r["integrator"]) == (scene, engine, integrator):
                 row[f"b{r['batch']}"] = r["body_steps_per_s"]
                 if r["batch"] == 1:
                     row["us1"] = r["s_per_step"] * 1e6
@@ -314,6 +434,27 @@ def table(result: dict) -> str:
             report.markdown_table(
                 [{**r, "us": r["s"] * 1e6} for r in info["rows"]],
                 [("stage", "stage", ""), ("µs", "us", ".1f")],
+            ),
+        ]
+    out += ["", *targets(result)]
+    if result.get("compile"):
+        out += [
+            "",
+            "Compile cost of the compiled backend: a fresh process imports rigid_env.sim, builds "
+            "the scene and takes one step, with empty numba and driver caches (cold: compiles) "
+            "and then with the caches that run wrote (cached), seconds:",
+            "",
+            report.markdown_table(
+                result["compile"],
+                [
+                    ("scene", "case", ""),
+                    ("caches", "run", ""),
+                    ("backend", "backend", ""),
+                    ("import sim", "import_s", ".2f"),
+                    ("build scene", "scene_s", ".2f"),
+                    ("first step", "first_step_s", ".2f"),
+                    ("whole process", "process_s", ".2f"),
+                ],
             ),
         ]
     mem = [{"scene": k, **v} for k, v in result["memory"].items()]
@@ -353,23 +494,87 @@ def table(result: dict) -> str:
     return "\n".join(out)
 
 
+def _engine(r: dict) -> str:
+    """The table's engine label: MuJoCo, or rigid_env with its backend."""
+    if r["engine"] != "rigid_env":
+        return r["engine"]
+    return f"rigid_env {r.get('backend', 'numpy')}"
+
+
+def _record(recs, scene, engine, integrator, batch):
+    for r in recs:
+        if (r["scene"], _engine(r), r["integrator"], r["batch"]) == (
+            scene,
+            engine,
+            integrator,
+            batch,
+        ):
+            return r
+    return None
+
+
+TARGETS = (
+    # (what, scene, integrator, MuJoCo integrator, batch, target µs/step or ratio)
+    ("free body, batch 1", "free_body", sim.DEFAULT_INTEGRATOR, "RK4", 1, "≤ 5 µs/step"),
+    ("landing, batch 1", "landing", sim.CONTACT_INTEGRATOR, "Euler", 1, "≤ 10 µs/step"),
+    ("landing, batch 1024", "landing", sim.CONTACT_INTEGRATOR, "Euler", 1024, "≥ 5× MuJoCo"),
+    ("free body rk4 (equal order), batch 1024", "free_body", "rk4", "RK4", 1024, "≥ 10× MuJoCo"),
+)
+
+
+def targets(result: dict) -> list[str]:
+    """The issue's speed targets against this run's figures, both backends and MuJoCo."""
+    recs, rows = result["records"], []
+    for what, scene, integrator, mj, batch, goal in TARGETS:
+        row = {"what": what, "goal": goal}
+        for b in BACKENDS:
+            r = _record(recs, scene, f"rigid_env {b}", integrator, batch)
+            row[b] = None if r is None else r["s_per_step"] * 1e6
+        peer = _record(recs, scene, "mujoco", mj, batch)
+        if peer is not None:
+            row["mujoco"] = peer["s_per_step"] * 1e6
+            for b in BACKENDS:
+                if row[b] is not None:
+                    row[f"x_{b}"] = row["mujoco"] / row[b]
+        rows.append(row)
+    return [
+        "Targets (µs per step of the whole batch; × = MuJoCo's time / ours per body, so > 1 is "
+        "faster than MuJoCo; rk4 against MuJoCo's RK4 at the same dt is the equal-accuracy "
+        "comparison: both fourth order, same body and tumble):",
+        "",
+        report.markdown_table(
+            rows,
+            [
+                ("case", "what", ""),
+                ("target", "goal", ""),
+                ("numpy µs", "numpy", ".1f"),
+                ("compiled µs", "compiled", ".1f"),
+                ("MuJoCo µs", "mujoco", ".1f"),
+                ("× numpy", "x_numpy", ".2f"),
+                ("× compiled", "x_compiled", ".2f"),
+            ],
+        ),
+    ]
+
+
 def plot(result: dict, path) -> None:
     recs = result["records"]
     scenes_ = list(dict.fromkeys(r["scene"] for r in recs))
     fig, axes = report.subplots(len(scenes_) + 1)
     for ax, scene in zip(axes, scenes_, strict=False):
         for key in dict.fromkeys(
-            (r["engine"], r["integrator"]) for r in recs if r["scene"] == scene
+            (_engine(r), r["integrator"]) for r in recs if r["scene"] == scene
         ):
             line = sorted(
-                (r for r in recs if r["scene"] == scene and (r["engine"], r["integrator"]) == key),
+                (r for r in recs if r["scene"] == scene and (_engine(r), r["integrator"]) == key),
                 key=lambda r: r["batch"],
             )
-            label = key[1] if key[0] == "rigid_env" else f"MuJoCo {key[1]}"
+            ours = key[0].startswith("rigid_env")
+            label = f"{key[1]} ({key[0].split()[1]})" if ours else f"MuJoCo {key[1]}"
             ax.loglog(
                 [r["batch"] for r in line],
                 [r["body_steps_per_s"] for r in line],
-                "o-" if key[0] == "rigid_env" else "s--",
+                ("o-" if key[0].endswith("numpy") else "^-") if ours else "s--",
                 ms=3,
                 label=label,
             )

@@ -399,7 +399,10 @@ def test_wrong_types_raise_value_error(call, word):
 
 
 def test_backend_is_validated_and_read_from_the_environment(monkeypatch):
-    assert sim.Scene(box(), 0.01).backend == "numpy"
+    # The default is "auto": the compiled kernels when numba imports (test_compiled.py covers
+    # the fallbacks).
+    monkeypatch.delenv("RIGID_ENV_BACKEND", raising=False)
+    assert sim.Scene(box(), 0.01).backend == "compiled"
     assert sim.Scene(box(), 0.01, backend="numpy").backend == "numpy"
     with pytest.raises(ValueError, match="backend"):
         sim.Scene(box(), 0.01, backend="cuda")

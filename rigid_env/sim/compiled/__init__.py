@@ -1,0 +1,93 @@
+"""``rigid_env.sim.compiled``: the compiled (numba) step, one call per step over the batch.
+
+The numpy path (``rigid_env.sim.integrators``, ``forces``, ``contacts``) is the reference; every
+kernel here mirrors one numpy algorithm, operation for operation where practical, so the two
+agree to rounding. The compiled path is chosen by ``Scene(..., backend=)`` or the environment
+variable ``RIGID_ENV_BACKEND`` (``"numpy"``, ``"compiled"``, ``"auto"`` = compiled when numba
+imports and every stage of the scene has a kernel, else numpy).
+
+Kernel conventions (contacts and integrators written by others follow them)
+---------------------------------------------------------------------------
+Everything is ``@njit(cache=True)``, float64, no ``fastmath`` (results must not depend on the
+compiler's reassociation), no allocation in the per-step path where a scalar tuple will do.
+A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
+batch element, on arrays that play the part of the ``StepContext``.
+
+**The step tuple** ``st`` is what every element kernel receives (``layout.py`` names the slots):
+
+====  ===========  ==================  ==========================================================
+slot  name         shape               meaning (``StepContext`` field)
+====  ===========  ==================  ==========================================================
+0-3   x0 q0 v0 w0  (N, n, 3|4)         the state passed in (``ctx.start``); read only
+4-7   x  q  v  w   (N, n, 3|4)         the working state (``ctx.x, q, v, w``): set to the state
+                                       passed in with |q| renormalised before the first stage,
+                                       updated in place by the stages, the step's result after
+                                       the last (fresh arrays, never the caller's)
+8-9   force torq   (N, n, 3)           applied world force / torque (zeros when none given)
+10    displace     (N, n, 3)           ``ctx.displacement``: zero before the first stage; the
+                                       contact solve adds its correction, the position update
+                                       adds it to x + Δt v
+11    contact      (N, C, CW)          contact slots (``ctx.contacts``): zero before the first
+                                       stage; detection writes, the solve and restitution read
+                                       and write
+12    report       (N, RW)             per-element figures (``ctx.report``), zero before the
+                                       first stage
+====  ===========  ==================  ==========================================================
+
+N is the flattened batch, n the bodies of one element, C the scene's contact slots (0 without
+contacts). ``contact`` columns: ``ARM`` (3, world vector from the body's centre of mass to the
+point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a float); the
+columns from ``SOLVER`` on belong to the contact solve and restitution (impulses, targets, the
+restitution velocity change...; widen ``CONTACT_WIDTH`` in ``layout.py`` if needed). Ground
+slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
+candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
+at the start-of-step pose as numpy does. ``report`` columns: ``ITERATIONS`` (most iterations a
+solve of this element used this step), ``CAPPED`` (1.0 if a solve stopped at its cap) and the
+others in ``layout.py``; a kernel that writes them gives its ``Kernel`` a ``report`` function
+that turns the columns into the ``scene.report`` entries its numpy twin writes.
+
+**An element kernel** is ``kernel(e, st, d) -> None``. It reads and writes only row ``e`` of
+the ``st`` arrays (so a batched step equals the same element stepped alone, bit for bit, and
+elements may run on threads), and ``d``, the stage's own constants: a tuple of float64/int64
+arrays built once from the scene (never sized by the batch; scalars as 1-element arrays). The
+body count n is ``st[0].shape[1]``.
+
+**A force kernel** (body level, pure) is ``term(b, x, q, v, w, fd) -> (f, t)``: body index b,
+x/v/w 3-tuples, q a 4-tuple (all world frame, the state the integrator evaluates at), ``fd`` the
+term's data tuple; it returns its world force and torque on body b as 3-tuples. The driver sums
+the scene's force stages, in stage order, onto the applied load: ``wrench(b, x, q, v, w, fa,
+ta, fds) -> (f, t)`` with ``fds`` the tuple of the terms' data. Force stages are not element
+kernels: as in numpy, the integrator evaluates them (at the start state, and at its own
+intermediate states).
+
+**An integrator kernel** is an element kernel that evaluates forces by calling the global name
+``wrench``, with ``d = ((body data, [dt, velocity_dependent], spring table), force data)``
+(``integrators.integrator_data``). It is written as a *template*: a plain, undecorated
+function whose source the driver copies into the generated module where ``wrench`` is defined
+(numba cannot cache a kernel that receives another kernel as an argument or closure, see
+``driver.py``); everything else it calls must be importable from its own module with
+``from module import *``, and the module lists its templates in ``TEMPLATES``. Names: ``<name>``
+for stage ``integrate``; ``<name>_velocity`` and ``<name>_position`` for the stages
+``integrate_velocity`` and ``integrate_position`` of a semi-implicit integrator (the contact
+stages run between them). Register with ``registry.register_integrator(name, module)``.
+
+**How a stage exposes its kernel**: ``registry.py`` maps a stage name (an entry of
+``scene.stages``) to a factory ``factory(scene) -> Kernel | tuple[Kernel, ...] | None``;
+``Kernel`` records the module path and function name of the element kernel, its data tuple,
+whether it is a template, and the contact slots it writes (detection). A factory returns
+``None`` when it cannot run that scene (e.g. body–body pairs): the scene then steps with numpy
+(``auto``) or refuses (``compiled``). Force terms register likewise (``register_force``) and
+return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_solve.py``) and
+add the module to ``backend.KERNEL_MODULES``.
+
+**The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
+source of a small module, ``element(e, st, data)`` = ``steps.begin`` (working state, zeroed
+scratch), each kernel in stage order with ``data[i]``, then ``steps.finite``; ``step(st, data)``
+loops over the batch (``nogil``; with ``backend="compiled-threads"`` the driver runs it on one
+contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
+its parallel loop bodies accept no tuples of arrays). It
+writes the module to a cache directory under a name hashed from that source and the kernel
+sources, imports it, and numba caches the compiled driver to disk (``cache=True``): one compile
+per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step
+runs.
+"""

@@ -1,0 +1,168 @@
+"""Force terms on one body, mirroring ``rigid_env.sim.forces``: ``term(b, x, q, v, w, fd)``.
+
+Each returns its world (force, torque) on body b as 3-tuples (zeros where numpy has ``None``:
+adding a zero changes no bit of a finite sum).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..model import Model
+from . import bodies
+from .registry import ForceKernel, register_force
+from .rotation import cross, matmul, quat_rotate, quat_to_matrix, transpose
+
+_ZERO = (0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def gravity(b, x, q, v, w, fd):
+    weight = fd[0]  # (n, 3): m g per body
+    return (weight[b, 0], weight[b, 1], weight[b, 2]), (0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def damping_matrix(b, x, q, fd, out):
+    """``forces.Damping.damping_matrix``: diag(γ_v m I, γ_ω R M0 Rᵀ), added into ``out``."""
+    bd, rates = fd
+    gv, gw = rates[0], rates[1]
+    a = gv * bd[b, bodies.MASS]
+    rot = quat_to_matrix(q)
+    inertia = matmul(matmul(rot, bodies.matrix(bd, b, bodies.INERTIA)), transpose(rot))
+    for i in range(3):
+        out[i, i] += a
+        for j in range(3):
+            out[3 + i, 3 + j] += gw * inertia[3 * i + j]
+
+
+@njit(cache=True)
+def damping(b, x, q, v, w, fd):
+    """ṗ = −γ_v p, L̇ = −γ_ω L; ``fd = (body data, [γ_v, γ_ω])``."""
+    bd, rates = fd
+    gv, gw = rates[0], rates[1]
+    f = (0.0, 0.0, 0.0)
+    t = (0.0, 0.0, 0.0)
+    if gv != 0.0:
+        a = -gv * bd[b, bodies.MASS]
+        f = (a * v[0], a * v[1], a * v[2])
+    if gw != 0.0:
+        lw = bodies.apply_inertia(bd, b, quat_to_matrix(q), w)
+        t = (-gw * lw[0], -gw * lw[1], -gw * lw[2])
+    return f, t
+
+
+# Columns of the spring table (S, SPRING_WIDTH).
+S_BODY, S_ANCHOR, S_ATTACH, S_K, S_C, S_REST = 0, 1, 4, 7, 8, 9
+SPRING_WIDTH = 10
+
+
+def spring_table(model: Model) -> np.ndarray:
+    table = np.zeros((len(model.springs), SPRING_WIDTH))
+    for i, sp in enumerate(model.springs):
+        table[i, S_BODY] = sp.body
+        table[i, S_ANCHOR : S_ANCHOR + 3] = sp.anchor
+        table[i, S_ATTACH : S_ATTACH + 3] = sp.attach
+        table[i, S_K], table[i, S_C], table[i, S_REST] = sp.stiffness, sp.damping, sp.rest_length
+    return table
+
+
+@njit(cache=True)
+def spring_force(sd, s, x, q, v, w):
+    """Force and torque of spring s on its body, and its arm R r (``forces.springs``)."""
+    anchor = (sd[s, S_ANCHOR], sd[s, S_ANCHOR + 1], sd[s, S_ANCHOR + 2])
+    attach = (sd[s, S_ATTACH], sd[s, S_ATTACH + 1], sd[s, S_ATTACH + 2])
+    k, c, rest = sd[s, S_K], sd[s, S_C], sd[s, S_REST]
+    arm = quat_rotate(q, attach)
+    d = (x[0] + arm[0] - anchor[0], x[1] + arm[1] - anchor[1], x[2] + arm[2] - anchor[2])
+    wa = cross(w, arm)
+    pdot = (v[0] + wa[0], v[1] + wa[1], v[2] + wa[2])
+    length = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+    safe = length if length > 0 else 1.0
+    unit = (d[0] / safe, d[1] / safe, d[2] / safe)
+    if rest > 0:
+        a = k * (length - rest)
+        stretched = (a * unit[0], a * unit[1], a * unit[2])
+        g = c * (pdot[0] * unit[0] + pdot[1] * unit[1] + pdot[2] * unit[2])
+        damped = (g * unit[0], g * unit[1], g * unit[2])
+    else:
+        stretched = (k * d[0], k * d[1], k * d[2])
+        damped = (c * pdot[0], c * pdot[1], c * pdot[2])
+    f = (-(stretched[0] + damped[0]), -(stretched[1] + damped[1]), -(stretched[2] + damped[2]))
+    return f, cross(arm, f)
+
+
+@njit(cache=True)
+def spring_damping_matrix(b, x, q, fd, out):
+    """``forces.Springs.damping_matrix``: Σ Jᵀ C J over body b's springs, added into ``out``."""
+    sd = fd[0]
+    for s in range(sd.shape[0]):
+        if int(sd[s, S_BODY]) != b or sd[s, S_C] == 0.0:
+            continue
+        attach = (sd[s, S_ATTACH], sd[s, S_ATTACH + 1], sd[s, S_ATTACH + 2])
+        c, rest = sd[s, S_C], sd[s, S_REST]
+        arm = quat_rotate(q, attach)
+        d = (
+            x[0] + arm[0] - sd[s, S_ANCHOR],
+            x[1] + arm[1] - sd[s, S_ANCHOR + 1],
+            x[2] + arm[2] - sd[s, S_ANCHOR + 2],
+        )
+        length = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        safe = length if length > 0 else 1.0
+        unit = (d[0] / safe, d[1] / safe, d[2] / safe)
+        jac = np.zeros((3, 6))  # J = [I, −(R r)*]
+        for i in range(3):
+            jac[i, i] = 1.0
+        jac[0, 4], jac[0, 5] = arm[2], -arm[1]
+        jac[1, 3], jac[1, 5] = -arm[2], arm[0]
+        jac[2, 3], jac[2, 4] = arm[1], -arm[0]
+        for i in range(6):
+            for j in range(6):
+                acc = 0.0
+                for a in range(3):
+                    for bb in range(3):
+                        cab = c * (unit[a] * unit[bb]) if rest > 0 else (c if a == bb else 0.0)
+                        acc += jac[a, i] * cab * jac[bb, j]
+                out[i, j] += acc
+
+
+@njit(cache=True)
+def springs(b, x, q, v, w, fd):
+    """Sum over the springs on body b, in spring order (numpy's incidence sum)."""
+    sd = fd[0]
+    fx = fy = fz = tx = ty = tz = 0.0
+    for s in range(sd.shape[0]):
+        if int(sd[s, S_BODY]) != b:
+            continue
+        f, t = spring_force(sd, s, x, q, v, w)
+        fx, fy, fz = fx + f[0], fy + f[1], fz + f[2]
+        tx, ty, tz = tx + t[0], ty + t[1], tz + t[2]
+    return (fx, fy, fz), (tx, ty, tz)
+
+
+_MODULE = __name__
+
+
+@register_force("gravity")
+def _gravity(scene):
+    weight = np.ascontiguousarray(scene.model.mass[:, None] * scene.model.gravity)
+    return ForceKernel(_MODULE, "gravity", (weight,))
+
+
+@register_force("damping")
+def _damping(scene):
+    m = scene.model
+    rates = np.array([m.linear_damping, m.angular_damping])
+    return ForceKernel(_MODULE, "damping", (bodies.body_data(m), rates), damping="damping_matrix")
+
+
+@register_force("springs")
+def _springs(scene):
+    damped = any(sp.damping for sp in scene.model.springs)
+    return ForceKernel(
+        _MODULE,
+        "springs",
+        (spring_table(scene.model),),
+        damping="spring_damping_matrix" if damped else None,
+    )

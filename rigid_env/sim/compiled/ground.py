@@ -1,0 +1,95 @@
+"""Ground detection kernel, mirroring ``contacts.ground.GroundContacts.detect``.
+
+Each shaped body offers its candidate points (a sphere its foot, a box its 8 corners, a
+polyhedron its vertices, padded to a common count V by repeating the first as numpy does) and
+takes the K lowest into its K contact slots, in ascending vertex order; among equal heights the
+lower vertex index wins. Detection runs at the start-of-step pose (x0, q0), as numpy's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..shapes import Box, Polyhedron, Sphere
+from .layout import ARM, BODY, CONTACT, GAP, Q0, X0
+from .registry import Kernel, register
+from .rotation import quat_rotate
+
+
+def ground_data(bodies) -> tuple:
+    """(points (G, V, 3), foot heights (G,), body indices (G,), [K]) as numpy builds them."""
+    shaped = [i for i, b in enumerate(bodies) if b.shape is not None]
+    points, radii, keep = [], [], []
+    for i in shaped:
+        shape = bodies[i].shape
+        if isinstance(shape, Sphere):
+            points.append(np.zeros((1, 3)))
+            radii.append(shape.radius)
+            keep.append(1)
+        elif isinstance(shape, Box):
+            points.append(shape.vertices)
+            radii.append(0.0)
+            keep.append(4)
+        elif isinstance(shape, Polyhedron):
+            # Only vertices of its faces: a listed point no face uses is not on the body.
+            used = sorted({i for face in shape.faces for i in face})
+            points.append(np.asarray(shape.vertices, float)[used])
+            radii.append(0.0)
+            keep.append(min(len(used), 8))
+        else:
+            return None
+    n_points = max(len(p) for p in points)
+    padded = [np.concatenate([p, np.repeat(p[:1], n_points - len(p), 0)]) for p in points]
+    return (
+        np.ascontiguousarray(np.stack(padded), dtype=float),
+        -np.array(radii, dtype=float),
+        np.array(shaped, dtype=np.int64),
+        np.array([max(keep)], dtype=np.int64),
+    )
+
+
+@njit(cache=True)
+def detect(e, st, d):
+    points, foot, bodies, keep = d
+    k = keep[0]
+    n_points = points.shape[1]
+    contact = st[CONTACT]
+    gaps = np.empty(n_points)
+    chosen = np.empty(n_points, np.bool_)
+    for g in range(bodies.shape[0]):
+        b = bodies[g]
+        x = st[X0][e, b]
+        q = (st[Q0][e, b, 0], st[Q0][e, b, 1], st[Q0][e, b, 2], st[Q0][e, b, 3])
+        for i in range(n_points):
+            arm = quat_rotate(q, (points[g, i, 0], points[g, i, 1], points[g, i, 2]))
+            gaps[i] = x[2] + (arm[2] + foot[g])
+            chosen[i] = False
+        for _ in range(k):
+            best = -1
+            for i in range(n_points):
+                if not chosen[i] and (best < 0 or gaps[i] < gaps[best]):
+                    best = i
+            chosen[best] = True
+        slot = g * k
+        for i in range(n_points):
+            if not chosen[i]:
+                continue
+            arm = quat_rotate(q, (points[g, i, 0], points[g, i, 1], points[g, i, 2]))
+            contact[e, slot, ARM] = arm[0] + 0.0
+            contact[e, slot, ARM + 1] = arm[1] + 0.0
+            contact[e, slot, ARM + 2] = arm[2] + foot[g]
+            contact[e, slot, GAP] = gaps[i]
+            contact[e, slot, BODY] = b
+            slot += 1
+
+
+@register("collide_ground")
+def _collide_ground(scene):
+    model = scene.model
+    if model.ground is None:
+        return None
+    data = ground_data(model.bodies)
+    if data is None:
+        return None
+    return Kernel(__name__, "detect", data, slots=len(data[2]) * int(data[3][0]))

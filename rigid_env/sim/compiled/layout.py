@@ -1,0 +1,29 @@
+"""Slots of the step tuple ``st`` and columns of its ``contact`` and ``report`` arrays.
+
+See the package docstring for what each holds. Kernels index with these names, never literals.
+"""
+
+# The step tuple.
+X0, Q0, V0, W0 = 0, 1, 2, 3  # the state passed in (read only)
+X, Q, V, W = 4, 5, 6, 7  # working state: starts as a copy (q renormalised), ends as the result
+FORCE, TORQUE = 8, 9  # applied loads
+DISPLACEMENT = 10  # (N, n, 3): zero at the start; the position update adds it to x + Δt v
+CONTACT = 11  # (N, C, CONTACT_WIDTH)
+REPORT = 12  # (N, REPORT_WIDTH)
+STEP_TUPLE_SIZE = 13
+
+# Columns of ``contact``: written by detection.
+ARM = 0  # 3 columns: world vector from the centre of mass to the contact point
+GAP = 3  # signed distance along the normal (< 0: penetration)
+BODY = 4  # body index (float)
+# From here on the columns belong to the contact solve.
+SOLVER = 5
+CONTACT_WIDTH = 16
+
+# Columns of ``report`` (the contact solve's; see ``contacts.stages.ContactReport``).
+ENGAGED = 0  # 1.0 if the element had a contact within reach this step
+ITERATIONS = 1  # iterations its solve used
+IMPACTS = 2  # impact events it resolved
+CAPPED = 3  # 1.0 if its solve stopped at a cap instead of converging
+UNPAID_ENERGY = 4  # energy excess (J) the guard could not remove
+REPORT_WIDTH = 8

@@ -1,0 +1,30 @@
+"""Every sim test runs on both backends: the numpy reference and the compiled kernels.
+
+The ``sim_backend`` fixture is autouse and parametrised per test as ``[numpy]`` and
+``[compiled]``: it sets ``RIGID_ENV_BACKEND`` for the scenes a test builds (``numpy``, or
+``auto``, which compiles every scene whose stages all have kernels and runs the rest on numpy).
+A scene that passes ``backend=`` itself keeps it. Modules whose scenes all have body–body
+contacts (no compiled kernels) run once, on numpy: a ``[compiled]`` run would repeat it; so do
+the modules that choose their backends themselves.
+"""
+
+import pytest
+
+BACKENDS = ("numpy", "compiled")
+NUMPY_ONLY = {
+    "test_box_box.py": "body–body contact scenes step with numpy on either backend",
+    "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
+}
+
+
+def pytest_generate_tests(metafunc):
+    if "sim_backend" in metafunc.fixturenames:
+        only = metafunc.definition.path.name in NUMPY_ONLY
+        metafunc.parametrize("sim_backend", ("numpy",) if only else BACKENDS, indirect=True)
+
+
+@pytest.fixture(autouse=True)
+def sim_backend(request, monkeypatch):
+    backend = request.param
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "numpy" if backend == "numpy" else "auto")
+    return backend

@@ -1,0 +1,219 @@
+"""The compiled backend against the numpy reference, its determinism, and its selection.
+
+Tolerances: the two backends run the same operations, but in a few places in another order
+(einsum and matmul sums, a 6×6 LU against LAPACK's), so one step differs by a few roundings,
+|Δy| ≲ c ε |y| with ε = 2.2e-16 and c ≈ 10 operations per entry. Over K steps such differences
+add up and are amplified at most by the flow's growth factor exp(L K Δt), L the largest rate of
+the dynamics (|ω|, √(k/m), damping; ≲ 10 /s here): for K = 20, Δt = 0.01, the bound is
+K c ε e^(L K Δt) |y| ≈ 20 · 10 · 2.2e-16 · e² · |y| ≈ 3e-13 |y|, so 1e-12 relative to the
+largest entry of each array.
+"""
+
+import numpy as np
+import pytest
+
+from rigid_env import sim
+from rigid_env.sim.compiled import backend as compiled_backend
+from rigid_env.sim.compiled import ground as compiled_ground
+from rigid_env.sim.compiled import layout
+from rigid_env.sim.contacts import GroundContacts
+from rigid_env.sim.rotation import random_quaternions
+
+pytestmark = pytest.mark.skipif(
+    not compiled_backend.numba_available(), reason="numba is not installed"
+)
+STEPS = 20
+RTOL = 1e-12  # derived in the module docstring
+
+
+def lopsided_body():
+    """A body whose axes are not principal: exercises the principal-frame rotations."""
+    inertia = np.array([[0.2, 0.01, 0.02], [0.01, 0.3, 0.0], [0.02, 0.0, 0.4]])
+    return sim.Body(2.0, inertia)
+
+
+def spring():
+    return sim.Spring(0, (0.0, 0.0, 1.0), 10.0, 0.5, 0.3, (0.1, 0.0, 0.0))
+
+
+ALL_FORCES = dict(
+    gravity=(0.0, 0.0, -9.81), linear_damping=0.1, angular_damping=0.2, springs=[spring()]
+)
+
+
+def random_state(scene, batch, seed=0):
+    rng = np.random.default_rng(seed)
+    n = scene.n_bodies
+    return scene.initial_state(
+        position=rng.normal(0, 0.3, (batch, n, 3)),
+        orientation=random_quaternions(rng, (batch, n)),
+        linear_velocity=rng.normal(0, 1, (batch, n, 3)),
+        angular_velocity=rng.normal(0, 3, (batch, n, 3)),
+    )
+
+
+def assert_close(a: sim.State, b: sim.State):
+    for x, y in zip(a.arrays(), b.arrays(), strict=True):
+        scale = max(np.max(np.abs(x)), 1.0)
+        assert np.max(np.abs(x - y)) <= RTOL * scale, np.max(np.abs(x - y)) / scale
+
+
+def run_both(make, steps=STEPS, batch=4, **load):
+    numpy_scene, compiled_scene = make("numpy"), make("compiled")
+    assert compiled_scene.backend == "compiled" and numpy_scene.backend == "numpy"
+    a = b = random_state(numpy_scene, batch)
+    for _ in range(steps):
+        a, b = numpy_scene.step(a, **load), compiled_scene.step(b, **load)
+    return a, b
+
+
+@pytest.mark.parametrize("integrator", sim.INTEGRATORS)
+def test_every_integrator_matches_numpy(integrator):
+    """Two bodies (one with off-principal axes), every force term, applied loads."""
+    bodies = [sim.Body.box((0.1, 0.2, 0.3), 1.0), lopsided_body()]
+
+    def make(backend):
+        return sim.Scene(bodies, 0.01, integrator=integrator, backend=backend, **ALL_FORCES)
+
+    a, b = run_both(make, torque=(0.1, -0.2, 0.05), force=np.ones((4, 2, 3)))
+    assert_close(a, b)
+
+
+@pytest.mark.parametrize(
+    "terms",
+    [
+        dict(gravity=(0.0, 0.0, -9.81)),
+        dict(linear_damping=0.3, angular_damping=0.5),
+        dict(springs=[spring()]),
+    ],
+    ids=["gravity", "damping", "springs"],
+)
+def test_each_force_term_matches_numpy(terms):
+    def make(backend):
+        return sim.Scene(lopsided_body(), 0.01, backend=backend, **terms)
+
+    a, b = run_both(make)
+    assert_close(a, b)
+
+
+def hexagonal_prism():
+    """12 vertices: more than the 8 a polyhedron offers the ground, so the kernel selects."""
+    angles = np.arange(6) * np.pi / 3
+    ring = np.stack((0.2 * np.cos(angles), 0.2 * np.sin(angles)), axis=-1)
+    vertices = np.concatenate((np.c_[ring, np.full(6, -0.1)], np.c_[ring, np.full(6, 0.1)]), axis=0)
+    faces = [tuple(range(5, -1, -1)), tuple(range(6, 12))]
+    faces += [(i, (i + 1) % 6, (i + 1) % 6 + 6, i + 6) for i in range(6)]
+    return sim.Body.polyhedron(vertices, faces, 1000.0)
+
+
+def test_ground_detection_matches_numpy():
+    """Boxes, spheres and a 12-vertex polyhedron at random poses: the same K lowest points
+    (arms and gaps) as ``GroundContacts.detect``, to rounding (one rotation, c ≈ 10 ulp)."""
+    bodies = [sim.Body.box((0.1, 0.2, 0.3), 1.0), sim.Body.sphere(0.15, 1.0), hexagonal_prism()]
+    rng = np.random.default_rng(1)
+    batch, n = 16, len(bodies)
+    x = rng.normal(0, 0.5, (batch, n, 3))
+    q = random_quaternions(rng, (batch, n))
+    arm, gap = GroundContacts(bodies).detect(x, q)
+    data = compiled_ground.ground_data(bodies)
+    k = int(data[3][0])
+    contact = np.zeros((batch, n * k, layout.CONTACT_WIDTH))
+    st = [np.zeros((batch, n, 3)) for _ in range(layout.STEP_TUPLE_SIZE)]
+    st[layout.X0], st[layout.Q0], st[layout.CONTACT] = x, q, contact
+    st[layout.REPORT] = np.zeros((batch, layout.REPORT_WIDTH))
+    st = tuple(st)
+    for e in range(batch):
+        compiled_ground.detect(e, st, data)
+    got_arm = contact[..., layout.ARM : layout.ARM + 3].reshape(batch, n, k, 3)
+    got_gap = contact[..., layout.GAP].reshape(batch, n, k)
+    assert np.array_equal(contact[..., layout.BODY].reshape(batch, n, k)[0, :, 0], np.arange(n))
+    # numpy's argpartition leaves the K lowest in no particular order: compare sorted by gap.
+    order, got_order = np.argsort(gap, axis=-1), np.argsort(got_gap, axis=-1)
+    assert np.allclose(np.take_along_axis(gap, order, -1), np.sort(got_gap, -1), atol=1e-15)
+    assert np.allclose(
+        np.take_along_axis(arm, order[..., None], -2),
+        np.take_along_axis(got_arm, got_order[..., None], -2),
+        atol=1e-15,
+    )
+    # The K lowest: no candidate left out lies below the highest one taken.
+    assert np.all(np.max(got_gap[:, 2], -1) <= np.sort(gap[:, 2], -1)[:, -1])
+
+
+@pytest.mark.parametrize("backend", ["compiled", "compiled-threads"])
+def test_batch_equals_single_bitwise(backend):
+    """Each element of a batch steps exactly as it does alone (and threads change no bit)."""
+    scene = sim.Scene(
+        [lopsided_body(), sim.Body.box((0.1, 0.2, 0.3), 1.0)],
+        0.01,
+        integrator="rk4",
+        backend=backend,
+        **ALL_FORCES,
+    )
+    state = random_state(scene, 7, seed=3)
+    torque = np.random.default_rng(4).normal(0, 0.5, (7, 2, 3))
+    batched = state
+    for _ in range(10):
+        batched = scene.step(batched, torque=torque)
+    for i in range(7):
+        single = state[i]
+        for _ in range(10):
+            single = scene.step(single, torque=torque[i])
+        for got, want in zip(single.arrays(), batched[i].arrays(), strict=True):
+            assert np.array_equal(got, want)
+
+
+def test_the_compiled_step_leaves_its_input_alone_and_shares_no_memory():
+    scene = sim.Scene(lopsided_body(), 0.01, backend="compiled", **ALL_FORCES)
+    state = random_state(scene, 3)
+    before = state.copy()
+    new = scene.step(state)
+    for a, b, c in zip(state.arrays(), before.arrays(), new.arrays(), strict=True):
+        assert np.array_equal(a, b)
+        assert not np.shares_memory(a, c)
+
+
+def test_backend_selection(monkeypatch):
+    body = sim.Body.box((0.1, 0.2, 0.3), 1.0)
+    assert sim.Scene(body, 0.01, backend="numpy").backend == "numpy"
+    assert sim.Scene(body, 0.01, backend="auto").backend == "compiled"
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "numpy")
+    assert sim.Scene(body, 0.01).backend == "numpy"
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "auto")
+    assert sim.Scene(body, 0.01).backend == "compiled"
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "fast")
+    with pytest.raises(ValueError, match="RIGID_ENV_BACKEND"):
+        sim.Scene(body, 0.01)
+    with pytest.raises(ValueError, match="backend"):
+        sim.Scene(body, 0.01, backend="fortran")
+
+
+def test_unsupported_scenes_fall_back_to_numpy_or_refuse():
+    """Body–body contacts have no kernels: ``auto`` steps them with numpy, ``compiled`` says
+    why it cannot."""
+    balls = [sim.Body.sphere(0.1, 1.0), sim.Body.sphere(0.1, 1.0)]
+    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="auto").backend == "numpy"
+    with pytest.raises(ValueError, match="no compiled kernel"):
+        sim.Scene(balls, 0.01, contacts=sim.Material(), backend="compiled")
+
+
+def test_without_numba_auto_is_numpy_and_compiled_refuses(monkeypatch):
+    monkeypatch.setattr(compiled_backend, "numba_available", lambda: False)
+    body = sim.Body.box((0.1, 0.2, 0.3), 1.0)
+    assert sim.Scene(body, 0.01, backend="auto").backend == "numpy"
+    with pytest.raises(ValueError, match="numba"):
+        sim.Scene(body, 0.01, backend="compiled")
+
+
+def test_composition_follows_the_stage_tuple():
+    """The generated driver calls one kernel per stage, in the scene's order; equal stage
+    tuples share one driver module."""
+    a = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled", **ALL_FORCES)
+    b = sim.Scene(lopsided_body(), 0.02, integrator="euler", backend="compiled", **ALL_FORCES)
+    assert a._driver.module is b._driver.module
+    body = a._driver.source.split("def element")[1].split("\n\n")[0]
+    calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, data[" in line]
+    assert calls == ["euler_velocity", "euler_position"]
+    forces = a._driver.source.split("def wrench")[1].split("return")[0]
+    assert [f"force_{i}(" in forces for i in range(3)] == [True, True, True]
+    free = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled")
+    assert "force_0" not in free._driver.source
