@@ -143,10 +143,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .. import sim
-from ..sim.rotation import quat_conjugate, quat_rotate
+from ..sim.rotation import quat_rotate
+from . import kernels
 from .core import TaskEnv, TaskVectorEnv
 from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
-from .kinematics import apply, apply_transpose, left_matrices, rotation_matrices
+from .kinematics import rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
@@ -212,7 +213,7 @@ class ReorientTask(HoldTask):
         n = self.num_envs
         self.state = self.scene.initial_state(batch_shape=(n,))
         self.target = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        self._target_left = left_matrices(quat_conjugate(self.target))  # q_err = L(q_t⁻¹) q
+        self._angle_coef = self.config.angle_weight / np.pi
         self._measure()
 
     def build_scene(self) -> sim.Scene:
@@ -255,7 +256,6 @@ class ReorientTask(HoldTask):
         )
         if target is not None:
             self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
-            self._target_left = left_matrices(quat_conjugate(self.target))
         self.state = state
         self._start_episode(index)
         self._measure()
@@ -263,37 +263,50 @@ class ReorientTask(HoldTask):
     # --- measurements, observation, reward ------------------------------------------------------
 
     def _measure(self) -> None:
-        """Error quaternion, body angular velocity, angle and spin of the current state."""
-        q = self.state.orientation[:, 0]
-        self._rot = rotation_matrices(q)
-        err = apply(self._target_left, q)
-        err *= np.copysign(1.0, err[:, 3:])  # w >= 0: continuous near the goal
-        self._q_err = err
-        self._omega = apply_transpose(self._rot, self.state.angular_velocity[:, 0])  # Ω = Rᵀ ω
-        self._angle = 2.0 * np.arctan2(np.linalg.norm(err[:, :3], axis=1), err[:, 3])
-        self._spin = np.linalg.norm(self._omega, axis=1)
-
-    def _observation_parts(self) -> dict[str, np.ndarray]:
-        return {
-            "error_quaternion": self._q_err,
-            "angular_velocity": np.clip(self._omega / self.spin_scale, -OBS_LIMIT, OBS_LIMIT),
-            "previous_action": self.prev_action,
-        }
-
-    def _task_terms(self) -> dict[str, np.ndarray]:
-        return {"reward_angle": -(self.config.angle_weight / np.pi) * self._angle}
-
-    def _within(self) -> np.ndarray:
-        cfg = self.config
-        return (self._angle < cfg.angle_threshold) & (self._spin < cfg.spin_threshold)
+        """Error quaternion, body angular velocity, angle, spin, observation, goal and the angle
+        term of the current state: one compiled call (``kernels.reorient_measure``)."""
+        n, cfg = self.num_envs, self.config
+        self._rot, self._omega = np.empty((n, 3, 3)), np.empty((n, 3))
+        self._angle, self._spin = np.empty(n), np.empty(n)
+        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
+        self._within_goal = np.empty(n, dtype=bool)
+        self._next_terms = np.zeros((n, len(self.reward_terms)))
+        self._info = np.empty((n, 4))
+        kernels.reorient_measure(
+            self.state.orientation,
+            self.state.angular_velocity,
+            self.target,
+            self.inertia,
+            self.spin_scale,
+            OBS_LIMIT,
+            self.prev_action,
+            cfg.angle_threshold,
+            cfg.spin_threshold,
+            self._angle_coef,
+            self._obs,
+            self._rot,
+            self._omega,
+            self._angle,
+            self._spin,
+            self._within_goal,
+            self._next_terms,
+            self._info,
+        )
 
     def _task_info(self) -> dict[str, np.ndarray]:
-        body_momentum = self._omega @ self.inertia  # I0 Ω (I0 symmetric)
         return {
             "angle_error": self._angle.copy(),
             "spin": self._spin.copy(),
-            "energy": 0.5 * np.einsum("ij,ij->i", self._omega, body_momentum),
-            "angular_momentum": apply(self._rot, body_momentum),  # L = R I0 Ω
+            "energy": self._info[:, 0].copy(),
+            "angular_momentum": self._info[:, 1:4].copy(),  # L = R I0 Ω, world axes
+        }
+
+    def _task_single_info(self) -> dict[str, Any]:
+        return {
+            "angle_error": self._angle.item(),
+            "spin": self._spin.item(),
+            "energy": self._info[0, 0].item(),
+            "angular_momentum": self._info[0, 1:4].copy(),
         }
 
     # --- rendering ------------------------------------------------------------------------------
