@@ -20,6 +20,17 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True)
+def finite_clip(a):
+    """Clip the 1-D float64 ``a`` to [-1, 1] in place; False (``a`` partly clipped) if an
+    entry is NaN or infinite. Same values as ``np.clip``: min(max(x, -1), 1)."""
+    for i in range(a.shape[0]):
+        if not math.isfinite(a[i]):
+            return False
+        a[i] = min(max(a[i], -1.0), 1.0)
+    return True
+
+
 @njit(cache=True, inline="always")
 def rotation(q, r):
     """R(q) of the unit quaternion ``q`` (4,) into ``r`` (3, 3)."""
