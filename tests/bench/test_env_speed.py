@@ -5,6 +5,8 @@ Rates are machine noise and never asserted; what the loop counts and times is.
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import pytest
 
@@ -33,3 +35,21 @@ def test_speed_reports_every_env_single_and_vector_with_the_same_loop():
         for mode, n in (("single", 1), ("vector", 1), ("vector", 3))
     }
     assert all(r["env_steps_per_s"] > 0 and 0 < r["physics_share"] < 1 for r in rows)
+
+
+def test_a_peer_env_is_timed_by_the_same_loop_without_a_physics_figure():
+    # Pendulum-v1 stands in for Hopper-v5 (no MuJoCo needed): not a rigid_env task, so the
+    # loop has no scene to time and reports the physics as NaN rather than a made-up share.
+    rate = env_speed.run(gym.make("Pendulum-v1"), steps=4)
+    assert rate.env_steps == 4 and rate.wall_s > 0
+    assert math.isnan(rate.physics_s)
+
+
+def test_main_prints_each_env_and_its_ratio_to_the_peer(capsys):
+    argv = [ID, "--seconds", "0.05", "--num-envs", "2", "--peer", "Pendulum-v1"]
+    assert env_speed.main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("single env      :") == 2 and out.count("vector env x2") == 1
+    assert f"{ID} single / Pendulum-v1 single:" in out
+    assert env_speed.main([ID, "--seconds", "0.05", "--num-envs", "2", "--peer", "none"]) == 0
+    assert "single /" not in capsys.readouterr().out
