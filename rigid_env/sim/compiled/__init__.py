@@ -8,7 +8,7 @@ imports and every stage of the scene has a kernel, else numpy).
 
 Kernel conventions (contacts and integrators written by others follow them)
 ---------------------------------------------------------------------------
-Everything is ``@njit(cache=True)``, float64, no ``fastmath`` (results must not depend on the
+Everything is ``@njit(cache=True, error_model="numpy")``, float64, no ``fastmath`` (results must not depend on the
 compiler's reassociation), no allocation in the per-step path where a scalar tuple will do.
 A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
 batch element, on arrays that play the part of the ``StepContext``.
@@ -28,10 +28,10 @@ slot  name         shape               meaning (``StepContext`` field)
                                        contact solve adds its correction, the position update
                                        adds it to x + Δt v
 11    contact      (N, C, CW)          contact slots (``ctx.contacts``): zero before the first
-                                       stage; detection writes, the solve and restitution read
-                                       and write
+                                       stage (fresh per call); detection writes, the solve and
+                                       restitution read and write
 12    report       (N, RW)             per-element figures (``ctx.report``), zero before the
-                                       first stage
+                                       first stage (fresh per call)
 ====  ===========  ==================  ==========================================================
 
 N is the flattened batch, n the bodies of one element, C the scene's contact slots (0 without

@@ -12,6 +12,9 @@ from numba import njit
 
 from .rotation import rotate, rotate_inverse
 
+# The helpers below take the body table: inlined (numba IR), since a call that passes an array
+# costs tens of ns in reference counting, more than the arithmetic it wraps.
+
 MASS, INV_MASS = 0, 1
 MOMENTS, INV_MOMENTS = 2, 5  # 3 each
 PRINCIPAL_QUAT, PRINCIPAL_CONJ = 8, 12  # 4 each
@@ -43,7 +46,7 @@ def body_data(model) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _mat9(bd, b, col):
     return (
         bd[b, col],
@@ -58,17 +61,17 @@ def _mat9(bd, b, col):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def vec3(bd, b, col):
     return (bd[b, col], bd[b, col + 1], bd[b, col + 2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def vec4(bd, b, col):
     return (bd[b, col], bd[b, col + 1], bd[b, col + 2], bd[b, col + 3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def apply_inertia(bd, b, rot, vec):
     """``R M0 Rᵀ vec`` (``Model.apply_inertia``)."""
     local = rotate_inverse(rot, vec)
@@ -78,7 +81,7 @@ def apply_inertia(bd, b, rot, vec):
     return rotate(rot, rotate(_mat9(bd, b, INERTIA), local))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def apply_inverse_inertia(bd, b, rot, vec):
     """``R M0⁻¹ Rᵀ vec`` (``Model.apply_inverse_inertia``)."""
     local = rotate_inverse(rot, vec)
@@ -88,7 +91,7 @@ def apply_inverse_inertia(bd, b, rot, vec):
     return rotate(rot, rotate(_mat9(bd, b, INV_INERTIA), local))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def matrix(bd, b, col):
     """A 9-tuple stored from column ``col`` (e.g. ``AXES``, ``INERTIA``)."""
     return _mat9(bd, b, col)

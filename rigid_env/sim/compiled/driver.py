@@ -35,6 +35,10 @@ from .registry import ForceKernel, Kernel
 _PACKAGE = Path(__file__).resolve().parent
 _F64 = np.dtype(np.float64)
 _SOURCES_HASH: str | None = None
+# Every kernel: cached, numpy's floating-point semantics (x/0 gives inf or nan, which the
+# finiteness check reports, as on the numpy path; Python's would raise ZeroDivisionError).
+_JIT = '@njit(cache=True, error_model="numpy")'
+_JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
 
 
 def sources_hash() -> str:
@@ -83,7 +87,7 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
     for i, k in enumerate(kernels):
         if not k.template:
             lines.append(f"from {k.module} import {k.name} as stage_{i}")
-    lines += ["", "", "@njit(cache=True)", "def wrench(b, x, q, v, w, fa, ta, fds):"]
+    lines += ["", "", _JIT, "def wrench(b, x, q, v, w, fa, ta, fds):"]
     lines.append("    f, t = fa, ta")
     for i in range(len(forces)):
         lines += [
@@ -92,15 +96,15 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
             "    t = (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])",
         ]
     lines.append("    return f, t")
-    lines += ["", "", "@njit(cache=True)", "def damping(b, x, q, fds, out):"]
+    lines += ["", "", _JIT, "def damping(b, x, q, fds, out):"]
     damped = [i for i, f in enumerate(forces) if f.damping is not None]
     lines += [f"    damping_{i}(b, x, q, fds[{i}], out)" for i in damped] or ["    return"]
     for module in templates:
         mod = importlib.import_module(module)
         for name in mod.TEMPLATES:
             src = textwrap.dedent(inspect.getsource(getattr(mod, name)))
-            lines += ["", "", "@njit(cache=True)", src.rstrip()]
-    lines += ["", "", "@njit(cache=True)", "def element(e, st, data):"]
+            lines += ["", "", _JIT, src.rstrip()]
+    lines += ["", "", _JIT, "def element(e, st, data):"]
     lines += [f"    if not begin(e, st, {ORIENTATION_TOLERANCE!r}):", "        return 1"]
     for i, k in enumerate(kernels):
         call = k.name if k.template else f"stage_{i}"
@@ -109,7 +113,7 @@ def generate(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> st
     lines += [
         "",
         "",
-        "@njit(cache=True, nogil=True)",
+        _JIT_NOGIL,
         "def step(st, data):",
         "    bad_orientation = 0",
         "    diverged = 0",
@@ -202,12 +206,12 @@ class Driver:
             x0, q0, v0, w0 = x0.reshape(flat), q0.reshape(qflat), v0.reshape(flat), w0.reshape(flat)
         x0, q0, v0, w0 = _plain(x0), _plain(q0), _plain(v0), _plain(w0)
         if self.slots:
-            # Contact stages write the scratch: fresh per call, so concurrent steps of one
-            # scene (threads) cannot mix. Without contacts it only ever holds zeros.
+            # Contact stages write the scratch: fresh zeros per call, so concurrent steps of
+            # one scene (threads) cannot mix. Without contacts nothing writes it (zeros).
             disp, contact, report = (
                 np.empty_like(disp),
-                np.empty_like(contact),
-                np.empty_like(report),
+                np.zeros_like(contact),
+                np.zeros_like(report),
             )
         force = zero if force is None else _load(force, shape, flat)
         torque = zero if torque is None else _load(torque, shape, flat)

@@ -17,13 +17,13 @@ from .rotation import cross, matmul, quat_rotate, quat_to_matrix, transpose
 _ZERO = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def gravity(b, x, q, v, w, fd):
     weight = fd[0]  # (n, 3): m g per body
     return (weight[b, 0], weight[b, 1], weight[b, 2]), (0.0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def damping_matrix(b, x, q, fd, out):
     """``forces.Damping.damping_matrix``: diag(γ_v m I, γ_ω R M0 Rᵀ), added into ``out``."""
     bd, rates = fd
@@ -37,7 +37,7 @@ def damping_matrix(b, x, q, fd, out):
             out[3 + i, 3 + j] += gw * inertia[3 * i + j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def damping(b, x, q, v, w, fd):
     """ṗ = −γ_v p, L̇ = −γ_ω L; ``fd = (body data, [γ_v, γ_ω])``."""
     bd, rates = fd
@@ -68,7 +68,7 @@ def spring_table(model: Model) -> np.ndarray:
     return table
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def spring_force(sd, s, x, q, v, w):
     """Force and torque of spring s on its body, and its arm R r (``forces.springs``)."""
     anchor = (sd[s, S_ANCHOR], sd[s, S_ANCHOR + 1], sd[s, S_ANCHOR + 2])
@@ -93,7 +93,7 @@ def spring_force(sd, s, x, q, v, w):
     return f, cross(arm, f)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def spring_damping_matrix(b, x, q, fd, out):
     """``forces.Springs.damping_matrix``: Σ Jᵀ C J over body b's springs, added into ``out``."""
     sd = fd[0]
@@ -127,7 +127,7 @@ def spring_damping_matrix(b, x, q, fd, out):
                 out[i, j] += acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def springs(b, x, q, v, w, fd):
     """Sum over the springs on body b, in spring order (numpy's incidence sum)."""
     sd = fd[0]

@@ -49,7 +49,7 @@ def ground_data(bodies) -> tuple:
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def detect(e, st, d):
     points, foot, bodies, keep = d
     k = keep[0]

@@ -11,50 +11,50 @@ import math
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def scale(s, a):
     """``s * a`` (scalar first, as numpy's ``s * a`` with a scalar s)."""
     return (s * a[0], s * a[1], s * a[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def mul(a, b):
     """Elementwise ``a * b``."""
     return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def div(a, b):
     """Elementwise ``a / b``."""
     return (a[0] / b[0], a[1] / b[1], a[2] / b[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def norm3(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_multiply(a, b):
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -66,18 +66,18 @@ def quat_multiply(a, b):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_conjugate(q):
     return (-q[0], -q[1], -q[2], q[3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_normalize(q):
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_to_matrix(q):
     x, y, z, w = q
     xx, yy, zz = x * x, y * y, z * z
@@ -96,7 +96,7 @@ def quat_to_matrix(q):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rotate(m, v):
     """``R v``."""
     return (
@@ -106,7 +106,7 @@ def rotate(m, v):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rotate_inverse(m, v):
     """``Rᵀ v``."""
     return (
@@ -116,7 +116,7 @@ def rotate_inverse(m, v):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def matmul(a, b):
     """``a @ b`` of 9-tuples."""
     return (
@@ -132,7 +132,7 @@ def matmul(a, b):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_rotate(q, v):
     """``v + 2 w (u × v) + 2 u × (u × v)``, as ``rotation.quat_rotate``."""
     u = (q[0], q[1], q[2])
@@ -143,7 +143,7 @@ def quat_rotate(q, v):
     return (v[0] + w * t[0] + ut[0], v[1] + w * t[1] + ut[1], v[2] + w * t[2] + ut[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_exp(r):
     """Unit quaternion of the rotation vector r, with the small-angle series of the numpy twin."""
     theta = norm3(r)
@@ -152,7 +152,7 @@ def quat_exp(r):
     return (sinc * r[0], sinc * r[1], sinc * r[2], math.cos(half))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def align_sign(q_new, q_old):
     """``q_new`` or ``−q_new``, whichever is nearer ``q_old`` (as ``integrators.common``)."""
     d = q_new[0] * q_old[0] + q_new[1] * q_old[1] + q_new[2] * q_old[2] + q_new[3] * q_old[3]
@@ -160,7 +160,7 @@ def align_sign(q_new, q_old):
     return (q_new[0] * s, q_new[1] * s, q_new[2] * s, q_new[3] * s)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gram_schmidt(m):
     """Normalise column α, orthogonalise β against it, γ = α × β (``rotation.gram_schmidt``)."""
     a = (m[0], m[3], m[6])
@@ -175,7 +175,7 @@ def gram_schmidt(m):
     return (a[0], b[0], c[0], a[1], b[1], c[1], a[2], b[2], c[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def matrix_to_quat(m):
     """Shepperd's method with the largest pivot and w ≥ 0, as ``rotation.matrix_to_quat``."""
     m00, m11, m22 = m[0], m[4], m[8]
@@ -207,12 +207,12 @@ def matrix_to_quat(m):
     return (q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def transpose(m):
     return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def skew(w):
     """The cross-product matrix ``ω*`` as a 9-tuple."""
     return (0.0, -w[2], w[1], w[2], 0.0, -w[0], -w[1], w[0], 0.0)
