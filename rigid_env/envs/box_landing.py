@@ -299,9 +299,24 @@ class BoxLandingTask(HoldTask):
         self.face = np.full(n, FACES.index("-z" if self.random_face else str(cfg.target_face)))
         self.touchdowns = np.zeros(n, dtype=np.int64)
         self._bounce = np.zeros(n, dtype=bool)
-        self._face_coef = cfg.face_weight / np.pi
+        self._params = np.array(  # what landing_measure reads, in its order
+            [
+                self.body.mass,
+                GRAVITY,
+                self.spin_scale,
+                VELOCITY_SCALE,
+                HEIGHT_LIMIT,
+                OBS_LIMIT,
+                cfg.contact_tolerance,
+                cfg.face_threshold,
+                cfg.speed_threshold,
+                cfg.spin_threshold,
+                cfg.face_weight / np.pi,
+                cfg.bounce_weight,
+            ]
+        )
         self._measure()
-        self.touching = self._info[:, 2] < cfg.contact_tolerance  # the clearance
+        self.touching = self._meas[:, 7] < cfg.contact_tolerance  # the clearance
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
@@ -393,7 +408,7 @@ class BoxLandingTask(HoldTask):
         self.touchdowns[index] = 0
         self._measure()
         self.touching = np.array(self.touching)
-        self.touching[index] = self._info[index, 2] < self.config.contact_tolerance
+        self.touching[index] = self._meas[index, 7] < self.config.contact_tolerance
 
     # --- stepping -------------------------------------------------------------------------------
 
@@ -420,13 +435,12 @@ class BoxLandingTask(HoldTask):
     def _measure(self) -> None:
         """Everything the observation, reward and info read off the current state: one
         compiled call (``kernels.landing_measure``)."""
-        n, cfg = self.num_envs, self.config
-        self._rot, self._omega = np.empty((n, 3, 3)), np.empty((n, 3))
-        self._angle, self._spin = np.empty(n), np.empty(n)
+        n = self.num_envs
+        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
+        self._ints = np.empty((n, 2), dtype=np.int64)
         self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
         self._within_goal = np.empty(n, dtype=bool)
         self._next_terms = np.zeros((n, len(self.reward_terms)))
-        self._info, self._ints = np.empty((n, 4)), np.empty((n, 2), dtype=np.int64)
         state = self.state
         kernels.landing_measure(
             state.position,
@@ -436,54 +450,43 @@ class BoxLandingTask(HoldTask):
             FACE_NORMALS[self.face],
             self.corners,
             self.inertia,
-            self.body.mass,
-            GRAVITY,
-            self.spin_scale,
-            VELOCITY_SCALE,
-            HEIGHT_LIMIT,
-            OBS_LIMIT,
-            cfg.contact_tolerance,
+            self._params,
             self.prev_action,
             self._bounce,
-            cfg.face_threshold,
-            cfg.speed_threshold,
-            cfg.spin_threshold,
-            self._face_coef,
-            cfg.bounce_weight,
             self._obs,
             self._rot,
-            self._omega,
-            self._angle,
-            self._spin,
+            self._meas,
+            self._ints,
             self._within_goal,
             self._next_terms,
-            self._info,
-            self._ints,
         )
+        meas = self._meas
+        self._omega, self._angle, self._spin = meas[:, 0:3], meas[:, 3], meas[:, 4]
         self._down_face = self._ints[:, 1]
 
     def _task_info(self) -> dict[str, np.ndarray]:
+        meas = self._meas
         return {
-            "angle_error": self._angle.copy(),
-            "spin": self._spin.copy(),
-            "speed": self._info[:, 0].copy(),
-            "height": self._info[:, 1].copy(),
-            "clearance": self._info[:, 2].copy(),
+            "angle_error": meas[:, 3].copy(),
+            "spin": meas[:, 4].copy(),
+            "speed": meas[:, 5].copy(),
+            "height": meas[:, 6].copy(),
+            "clearance": meas[:, 7].copy(),
             "contact_count": self._ints[:, 0].copy(),
             "touchdowns": self.touchdowns.copy(),
             "bounces": np.maximum(self.touchdowns - 1, 0),
             "down_face": self._ints[:, 1].copy(),
             "target_face": np.array(self.face),
-            "energy": self._info[:, 3].copy(),
+            "energy": meas[:, 8].copy(),
         }
 
     def _task_single_info(self) -> dict[str, Any]:
-        speed, height, clearance, energy = self._info[0].tolist()
+        angle, spin, speed, height, clearance, energy = self._meas[0, 3:9].tolist()
         contact_count, down_face = self._ints[0].tolist()
         touchdowns = self.touchdowns.item()
         return {
-            "angle_error": self._angle.item(),
-            "spin": self._spin.item(),
+            "angle_error": angle,
+            "spin": spin,
             "speed": speed,
             "height": height,
             "clearance": clearance,

@@ -213,9 +213,17 @@ class HoldTask(BatchedTask):
             "reward_ctrl",
             "reward_success",
         )
-        # Reward coefficients: -spin_coef |Ω|, -ctrl_coef |a|² (the shared terms).
-        self._spin_coef = config.spin_weight / self.spin_scale
-        self._ctrl_coef = config.action_weight / 3.0
+        # What kernels.hold_step reads: hold_steps, then the shared terms' coefficients
+        # (-spin_coef |Ω|, -ctrl_coef |a|², the success bonus).
+        self._hold_params = np.array(
+            [
+                self.hold_steps,
+                config.spin_weight / self.spin_scale,
+                config.action_weight / 3.0,
+                config.success_bonus,
+            ],
+            dtype=float,
+        )
 
         n = self.num_envs
         self.prev_action = np.zeros((n, 3))
@@ -282,12 +290,9 @@ class HoldTask(BatchedTask):
         kernels.hold_step(
             self._within_goal,
             self.hold,
-            self.hold_steps,
             self._spin,
-            self._spin_coef,
             action,
-            self._ctrl_coef,
-            cfg.success_bonus,
+            self._hold_params,
             terms,
             reward,
             success,

@@ -83,13 +83,12 @@ def latch_and_world_torque(x, q, corners, tolerance, touched, torque, out):
 
 
 @njit(cache=True)
-def hold_step(
-    within, hold, hold_steps, spin, spin_coef, action, ctrl_coef, bonus, terms, reward, success
-):
-    """The shared end of a step, per env: the hold timer (``hold`` updated in place), success,
-    the shared reward terms written after the task's own in ``terms`` (N, T + 3): spin
-    (``-spin_coef |Ω|``), control (``-ctrl_coef |a|²``), success bonus; and their sum, in
-    column order, into ``reward``."""
+def hold_step(within, hold, spin, action, params, terms, reward, success):
+    """The shared end of a step, per env, with ``params`` = [hold_steps, spin_coef, ctrl_coef,
+    bonus]: the hold timer (``hold`` updated in place), success, the shared reward terms
+    written after the task's own in ``terms`` (N, T + 3): spin (``-spin_coef |Ω|``), control
+    (``-ctrl_coef |a|²``), success bonus; and their sum, in column order, into ``reward``."""
+    hold_steps, spin_coef, ctrl_coef, bonus = params[0], params[1], params[2], params[3]
     t = terms.shape[1] - 3
     for e in range(within.shape[0]):
         hold[e] = hold[e] + 1 if within[e] else 0
@@ -106,18 +105,19 @@ def hold_step(
 
 
 @njit(cache=True)
-def reorient_measure(
-    q, w, target, inertia, spin_scale, limit, prev_action, angle_threshold, spin_threshold,
-    angle_coef, obs, rot, omega, angle, spin, within, terms, info,
-):  # fmt: skip
+def reorient_measure(q, w, target, inertia, params, prev_action, obs, rot, meas, within, terms):
     """Everything Reorient reads off a state, per env. In: ``q`` (N, 1, 4), ``w`` (N, 1, 3)
-    world angular velocity, ``target`` (N, 4), ``inertia`` (3, 3) body axes, ``prev_action``
-    (N, 3). Out: ``obs`` (N, 10) float32 [q_err (w >= 0), clip(Ω / spin_scale, ±limit),
-    prev_action]; ``rot`` R(q); ``omega`` Ω = Rᵀ ω; ``angle`` θ = 2 atan2(|q_err,v|, q_err,w);
-    ``spin`` |Ω|; ``within`` the goal; ``terms[:, 0]`` ``-angle_coef θ``; ``info`` (N, 4)
-    [energy ½ Ωᵀ I Ω, world angular momentum R I Ω (3)].
+    world angular velocity, ``target`` (N, 4), ``inertia`` (3, 3) body axes, ``params`` =
+    [spin_scale, observation limit, angle_threshold, spin_threshold, angle_coef],
+    ``prev_action`` (N, 3). Out: ``obs`` (N, 10) float32 [q_err (w >= 0), clip(Ω / spin_scale,
+    ±limit), prev_action]; ``rot`` R(q); ``meas`` (N, 9) [Ω = Rᵀ ω (3), θ = 2 atan2(|q_err,v|,
+    q_err,w), |Ω|, energy ½ Ωᵀ I Ω, world angular momentum R I Ω (3)]; ``within`` the goal;
+    ``terms[:, 0]`` ``-angle_coef θ``.
 
     q_err = q_target⁻¹ ∘ q (Hamilton product), with q⁻¹ = (−v, w) for a unit quaternion."""
+    spin_scale, limit, angle_threshold, spin_threshold, angle_coef = (
+        params[0], params[1], params[2], params[3], params[4]
+    )  # fmt: skip
     for e in range(q.shape[0]):
         r = rot[e]
         qe = q[e, 0]
@@ -133,54 +133,63 @@ def reorient_measure(
         ex, ey, ez, ew = ex * sign, ey * sign, ez * sign, ew * sign
         obs[e, 0], obs[e, 1], obs[e, 2], obs[e, 3] = ex, ey, ez, ew
         we = w[e, 0]
+        m = meas[e]
         for i in range(3):
-            omega[e, i] = r[0, i] * we[0] + r[1, i] * we[1] + r[2, i] * we[2]
-        ox, oy, oz = omega[e, 0], omega[e, 1], omega[e, 2]
-        angle[e] = 2.0 * math.atan2(math.sqrt(ex * ex + ey * ey + ez * ez), ew)
-        spin[e] = math.sqrt(ox * ox + oy * oy + oz * oz)
+            m[i] = r[0, i] * we[0] + r[1, i] * we[1] + r[2, i] * we[2]
+        ox, oy, oz = m[0], m[1], m[2]
+        angle = 2.0 * math.atan2(math.sqrt(ex * ex + ey * ey + ez * ez), ew)
+        spin = math.sqrt(ox * ox + oy * oy + oz * oz)
+        m[3], m[4] = angle, spin
         for i in range(3):
-            obs[e, 4 + i] = min(max(omega[e, i] / spin_scale, -limit), limit)
+            obs[e, 4 + i] = min(max(m[i] / spin_scale, -limit), limit)
             obs[e, 7 + i] = prev_action[e, i]
-        within[e] = angle[e] < angle_threshold and spin[e] < spin_threshold
-        terms[e, 0] = -angle_coef * angle[e]
+        within[e] = angle < angle_threshold and spin < spin_threshold
+        terms[e, 0] = -angle_coef * angle
         mx = inertia[0, 0] * ox + inertia[0, 1] * oy + inertia[0, 2] * oz  # I Ω, body axes
         my = inertia[1, 0] * ox + inertia[1, 1] * oy + inertia[1, 2] * oz
         mz = inertia[2, 0] * ox + inertia[2, 1] * oy + inertia[2, 2] * oz
-        info[e, 0] = 0.5 * (ox * mx + oy * my + oz * mz)
+        m[5] = 0.5 * (ox * mx + oy * my + oz * mz)
         for i in range(3):
-            info[e, 1 + i] = r[i, 0] * mx + r[i, 1] * my + r[i, 2] * mz
+            m[6 + i] = r[i, 0] * mx + r[i, 1] * my + r[i, 2] * mz
 
 
 @njit(cache=True)
 def landing_measure(
-    x, q, v, w, face_normal, corners, inertia, mass, gravity, spin_scale, velocity_scale,
-    height_limit, limit, tolerance, prev_action, bounce, face_threshold, speed_threshold,
-    spin_threshold, face_coef, bounce_weight, obs, rot, omega, angle, spin, within, terms,
-    info, ints,
+    x, q, v, w, face_normal, corners, inertia, params, prev_action, bounce, obs, rot, meas,
+    ints, within, terms,
 ):  # fmt: skip
     """Everything BoxLanding reads off a state, per env. In: the state's (N, 1, ·) arrays,
     ``face_normal`` (N, 3) the target face's outward normal (body axes), ``corners`` (8, 3),
-    ``inertia`` (3, 3), ``prev_action`` (N, 3), ``bounce`` (N,) whether this step's touchdown
-    was a bounce. Out: ``obs`` (N, 25) float32 in the order of the task's observation parts;
-    ``rot`` R(q); ``omega`` Ω = Rᵀ ω; ``angle`` θ between the face normal and world −z (by
-    atan2: arccos loses digits near 0); ``spin`` |Ω|; ``within`` the goal; ``terms[:, :2]``
-    face and bounce terms; ``info`` (N, 4) [speed, height, clearance, energy]; ``ints`` (N, 2)
-    [corners in contact, the face nearest down (index into FACES)].
+    ``inertia`` (3, 3), ``params`` = [mass, gravity, spin_scale, velocity_scale, height_limit,
+    observation limit, contact_tolerance, face_threshold, speed_threshold, spin_threshold,
+    face_coef, bounce_weight], ``prev_action`` (N, 3), ``bounce`` (N,) whether this step's
+    touchdown was a bounce. Out: ``obs`` (N, 25) float32 in the order of the task's
+    observation parts; ``rot`` R(q); ``meas`` (N, 9) [Ω = Rᵀ ω (3), θ between the face normal
+    and world −z (by atan2: arccos loses digits near 0), |Ω|, speed, height, clearance (the
+    lowest corner's height), energy]; ``ints`` (N, 2) [corners in contact, the face nearest
+    down (index into FACES)]; ``within`` the goal; ``terms[:, :2]`` face and bounce terms.
 
     A corner's gap is z + (R c)_z, with world +z in body axes (Rᵀ e_z) being R's last row."""
+    mass, gravity, spin_scale, velocity_scale, height_limit, limit = (
+        params[0], params[1], params[2], params[3], params[4], params[5]
+    )  # fmt: skip
+    tolerance, face_threshold, speed_threshold, spin_threshold, face_coef, bounce_weight = (
+        params[6], params[7], params[8], params[9], params[10], params[11]
+    )  # fmt: skip
     for e in range(q.shape[0]):
         r = rot[e]
+        m = meas[e]
         rotation(q[e, 0], r)
         ux, uy, uz = r[2, 0], r[2, 1], r[2, 2]  # world up in body axes
         dx, dy, dz = -ux, -uy, -uz
         nx, ny, nz = face_normal[e, 0], face_normal[e, 1], face_normal[e, 2]
         cx, cy, cz = ny * dz - nz * dy, nz * dx - nx * dz, nx * dy - ny * dx
-        angle[e] = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), nx * dx + ny * dy + nz * dz)
+        angle = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), nx * dx + ny * dy + nz * dz)
         we = w[e, 0]
         for i in range(3):
-            omega[e, i] = r[0, i] * we[0] + r[1, i] * we[1] + r[2, i] * we[2]
-        ox, oy, oz = omega[e, 0], omega[e, 1], omega[e, 2]
-        spin[e] = math.sqrt(ox * ox + oy * oy + oz * oz)
+            m[i] = r[0, i] * we[0] + r[1, i] * we[1] + r[2, i] * we[2]
+        ox, oy, oz = m[0], m[1], m[2]
+        spin = math.sqrt(ox * ox + oy * oy + oz * oz)
         ve = v[e, 0]
         speed = math.sqrt(ve[0] * ve[0] + ve[1] * ve[1] + ve[2] * ve[2])
         z = x[e, 0, 2]
@@ -205,17 +214,17 @@ def landing_measure(
         obs[e, 1] = min(max(clearance, 0.0), height_limit)
         for i in range(3):
             obs[e, 2 + i] = min(max(ve[i] / velocity_scale, -limit), limit)
-            obs[e, 8 + i] = min(max(omega[e, i] / spin_scale, -limit), limit)
+            obs[e, 8 + i] = min(max(m[i] / spin_scale, -limit), limit)
             obs[e, 11 + i] = face_normal[e, i]
             obs[e, 22 + i] = prev_action[e, i]
         obs[e, 5], obs[e, 6], obs[e, 7] = ux, uy, uz
         within[e] = (
             count > 0
-            and angle[e] < face_threshold
+            and angle < face_threshold
             and speed < speed_threshold
-            and spin[e] < spin_threshold
+            and spin < spin_threshold
         )
-        terms[e, 0] = -face_coef * angle[e]
+        terms[e, 0] = -face_coef * angle
         terms[e, 1] = -bounce_weight * (1.0 if bounce[e] else 0.0)
         mx = inertia[0, 0] * ox + inertia[0, 1] * oy + inertia[0, 2] * oz  # I Ω, body axes
         my = inertia[1, 0] * ox + inertia[1, 1] * oy + inertia[1, 2] * oz
@@ -223,7 +232,5 @@ def landing_measure(
         kinetic = mass * (ve[0] * ve[0] + ve[1] * ve[1] + ve[2] * ve[2]) + (
             ox * mx + oy * my + oz * mz
         )
-        info[e, 0] = speed
-        info[e, 1] = z
-        info[e, 2] = clearance
-        info[e, 3] = 0.5 * kinetic + mass * gravity * z
+        m[3], m[4], m[5], m[6], m[7] = angle, spin, speed, z, clearance
+        m[8] = 0.5 * kinetic + mass * gravity * z

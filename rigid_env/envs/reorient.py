@@ -213,7 +213,16 @@ class ReorientTask(HoldTask):
         n = self.num_envs
         self.state = self.scene.initial_state(batch_shape=(n,))
         self.target = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        self._angle_coef = self.config.angle_weight / np.pi
+        cfg = self.config
+        self._params = np.array(  # what reorient_measure reads, in its order
+            [
+                self.spin_scale,
+                OBS_LIMIT,
+                cfg.angle_threshold,
+                cfg.spin_threshold,
+                cfg.angle_weight / np.pi,
+            ]
+        )
         self._measure()
 
     def build_scene(self) -> sim.Scene:
@@ -265,48 +274,45 @@ class ReorientTask(HoldTask):
     def _measure(self) -> None:
         """Error quaternion, body angular velocity, angle, spin, observation, goal and the angle
         term of the current state: one compiled call (``kernels.reorient_measure``)."""
-        n, cfg = self.num_envs, self.config
-        self._rot, self._omega = np.empty((n, 3, 3)), np.empty((n, 3))
-        self._angle, self._spin = np.empty(n), np.empty(n)
+        n = self.num_envs
+        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
         self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
         self._within_goal = np.empty(n, dtype=bool)
         self._next_terms = np.zeros((n, len(self.reward_terms)))
-        self._info = np.empty((n, 4))
         kernels.reorient_measure(
             self.state.orientation,
             self.state.angular_velocity,
             self.target,
             self.inertia,
-            self.spin_scale,
-            OBS_LIMIT,
+            self._params,
             self.prev_action,
-            cfg.angle_threshold,
-            cfg.spin_threshold,
-            self._angle_coef,
             self._obs,
             self._rot,
-            self._omega,
-            self._angle,
-            self._spin,
+            self._meas,
             self._within_goal,
             self._next_terms,
-            self._info,
+        )
+        self._omega, self._angle, self._spin = (
+            self._meas[:, 0:3],
+            self._meas[:, 3],
+            self._meas[:, 4],
         )
 
     def _task_info(self) -> dict[str, np.ndarray]:
         return {
             "angle_error": self._angle.copy(),
             "spin": self._spin.copy(),
-            "energy": self._info[:, 0].copy(),
-            "angular_momentum": self._info[:, 1:4].copy(),  # L = R I0 Ω, world axes
+            "energy": self._meas[:, 5].copy(),
+            "angular_momentum": self._meas[:, 6:9].copy(),  # L = R I0 Ω, world axes
         }
 
     def _task_single_info(self) -> dict[str, Any]:
+        angle, spin, energy = self._meas[0, 3:6].tolist()
         return {
-            "angle_error": self._angle.item(),
-            "spin": self._spin.item(),
-            "energy": self._info[0, 0].item(),
-            "angular_momentum": self._info[0, 1:4].copy(),
+            "angle_error": angle,
+            "spin": spin,
+            "energy": energy,
+            "angular_momentum": self._meas[0, 6:9].copy(),
         }
 
     # --- rendering ------------------------------------------------------------------------------
