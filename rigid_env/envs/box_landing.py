@@ -297,6 +297,7 @@ class BoxLandingTask(HoldTask):
             position=(0.0, 0.0, cfg.height_range[0]), batch_shape=(n,)
         )
         self.face = np.full(n, FACES.index("-z" if self.random_face else str(cfg.target_face)))
+        self._face_normal = FACE_NORMALS[self.face]
         self.touchdowns = np.zeros(n, dtype=np.int64)
         self._bounce = np.zeros(n, dtype=bool)
         self._params = np.array(  # what landing_measure reads, in its order
@@ -403,6 +404,7 @@ class BoxLandingTask(HoldTask):
             face = _face_index(target_face)
             self.face = np.array(self.face)
             self.face[index] = np.broadcast_to(face, (len(index),))
+            self._face_normal = FACE_NORMALS[self.face]  # changes only here
         self.state = state
         self._start_episode(index)
         self.touchdowns[index] = 0
@@ -427,9 +429,9 @@ class BoxLandingTask(HoldTask):
             latch(state.position, state.orientation, corners, tolerance, touched, torque, world)
 
         self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip, after)
-        touchdown = touched & ~self.touching
-        self._bounce = touchdown & (self.touchdowns > 0)
-        self.touchdowns = self.touchdowns + touchdown
+        # touchdown = touched & ~touching; bounce = touchdown after an earlier one; count it.
+        self._bounce = np.empty(self.num_envs, dtype=bool)
+        kernels.count_touchdowns(touched, self.touching, self.touchdowns, self._bounce)
         self.touching = touched
 
     def _measure(self) -> None:
@@ -447,7 +449,7 @@ class BoxLandingTask(HoldTask):
             state.orientation,
             state.linear_velocity,
             state.angular_velocity,
-            FACE_NORMALS[self.face],
+            self._face_normal,
             self.corners,
             self.inertia,
             self._params,

@@ -83,6 +83,17 @@ def latch_and_world_torque(x, q, corners, tolerance, touched, torque, out):
 
 
 @njit(cache=True)
+def count_touchdowns(touched, touching, touchdowns, bounce):
+    """A touchdown is touching the ground now (``touched`` during this action) after not
+    touching it (``touching``, the previous action); ``touchdowns`` counts them in place and
+    ``bounce`` marks a touchdown that is not the first."""
+    for e in range(touched.shape[0]):
+        touchdown = touched[e] and not touching[e]
+        bounce[e] = touchdown and touchdowns[e] > 0
+        touchdowns[e] += touchdown
+
+
+@njit(cache=True)
 def hold_step(within, hold, spin, action, params, terms, reward, success):
     """The shared end of a step, per env, with ``params`` = [hold_steps, spin_coef, ctrl_coef,
     bonus]: the hold timer (``hold`` updated in place), success, the shared reward terms
