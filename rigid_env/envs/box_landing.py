@@ -176,7 +176,6 @@ from ..sim.scenes import LANDING_HALF_EXTENTS
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
 from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, step_body_torque
-from .kinematics import rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
 
@@ -527,7 +526,7 @@ class BoxLandingTask(HoldTask):
             axis, angle = np.array([1.0, 0.0, 0.0]), (0.0 if cos > 0 else np.pi)
         else:
             axis, angle = axis / sin, math.atan2(sin, cos)
-        align = rotation_matrices(quat_from_axis_angle(axis, np.array(angle))[None])[0]
+        align = kernels.rotation_matrices(quat_from_axis_angle(axis, np.array(angle))[None])[0]
         position = np.array(
             [*self.state.position[i, 0, :2], abs(normal @ self.body.shape.half_extents)]
         )

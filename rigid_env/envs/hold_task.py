@@ -69,11 +69,6 @@ def step_body_torque(
     return state
 
 
-def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of (N, 3) stacks, elementwise (exact whatever the batch size)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
 @dataclass(frozen=True, kw_only=True, eq=False)
 class HoldTaskConfig:
     """Arguments every body-torque hold task takes, validated when the config is built.

@@ -147,7 +147,6 @@ from ..sim.rotation import quat_rotate
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
 from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
-from .kinematics import rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
@@ -333,7 +332,10 @@ class ReorientTask(HoldTask):
         origin = np.zeros(3)
         body = Item(self.mesh, self._rot[i], origin, color=(214, 178, 92), axes_length=axes)
         ghost = Item(
-            self.mesh, rotation_matrices(self.target[i : i + 1])[0], origin, axes_length=axes
+            self.mesh,
+            kernels.rotation_matrices(self.target[i : i + 1])[0],
+            origin,
+            axes_length=axes,
         )
         text = (
             f"angle error {np.degrees(self._angle[i]):6.1f} deg",
