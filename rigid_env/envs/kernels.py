@@ -19,9 +19,11 @@ import math
 import numpy as np
 from numba import njit
 
+Arr = np.ndarray
+
 
 @njit(cache=True)
-def finite_clip(a):
+def finite_clip(a: Arr) -> bool:
     """Clip the 1-D float64 ``a`` to [-1, 1] in place; False (``a`` partly clipped) if an
     entry is NaN or infinite. Same values as ``np.clip``: min(max(x, -1), 1)."""
     for i in range(a.shape[0]):
@@ -32,7 +34,7 @@ def finite_clip(a):
 
 
 @njit(cache=True, inline="always")
-def rotation(q, r):
+def rotation(q: Arr, r: Arr) -> None:
     """R(q) of the unit quaternion ``q`` (4,) into ``r`` (3, 3)."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     r[0, 0] = 1.0 - 2.0 * (y * y + z * z)
@@ -47,12 +49,12 @@ def rotation(q, r):
 
 
 @njit(cache=True)
-def _rotations(q, out):
+def _rotations(q: Arr, out: Arr) -> None:
     for e in range(q.shape[0]):
         rotation(q[e], out[e])
 
 
-def rotation_matrices(q: np.ndarray) -> np.ndarray:
+def rotation_matrices(q: Arr) -> Arr:
     """R(q) (body → world) for unit quaternions ``(N, 4)`` → ``(N, 3, 3)`` (e.g. for drawing)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     out = np.empty((q.shape[0], 3, 3))
@@ -61,7 +63,7 @@ def rotation_matrices(q: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def world_torque(q, torque, out):
+def world_torque(q: Arr, torque: Arr, out: Arr) -> None:
     """``out[e, 0] = R(q[e, 0]) torque[e]``: the body-fixed torque in world axes for a one-body
     scene; ``q`` (N, 1, 4), ``torque`` (N, 3), ``out`` (N, 1, 3)."""
     r = np.empty((3, 3))
@@ -72,7 +74,9 @@ def world_torque(q, torque, out):
 
 
 @njit(cache=True)
-def latch_and_world_torque(x, q, corners, tolerance, touched, torque, out):
+def latch_and_world_torque(
+    x: Arr, q: Arr, corners: Arr, tolerance: float, touched: Arr, torque: Arr, out: Arr
+) -> None:
     """After a physics step of the box: ``touched[e] |=`` (its lowest corner is below
     ``tolerance``), and the next step's world torque as :func:`world_torque`. The lowest corner
     is z + min over corners c of (R c)_z, R's last row taken from q."""
@@ -90,7 +94,7 @@ def latch_and_world_torque(x, q, corners, tolerance, touched, torque, out):
 
 
 @njit(cache=True)
-def count_touchdowns(touched, touching, touchdowns, bounce):
+def count_touchdowns(touched: Arr, touching: Arr, touchdowns: Arr, bounce: Arr) -> None:
     """A touchdown is touching the ground now (``touched`` during this action) after not
     touching it (``touching``, the previous action); ``touchdowns`` counts them in place and
     ``bounce`` marks a touchdown that is not the first."""
@@ -101,7 +105,10 @@ def count_touchdowns(touched, touching, touchdowns, bounce):
 
 
 @njit(cache=True)
-def hold_step(within, hold, spin, action, params, terms, reward, success):
+def hold_step(
+    within: Arr, hold: Arr, spin: Arr, action: Arr, params: Arr, terms: Arr, reward: Arr,
+    success: Arr,
+) -> None:  # fmt: skip
     """The shared end of a step, per env, with ``params`` = [hold_steps, spin_coef, ctrl_coef,
     bonus]: the hold timer (``hold`` updated in place), success, the shared reward terms
     written after the task's own in ``terms`` (N, T + 3): spin (``-spin_coef |Ω|``), control
@@ -123,7 +130,10 @@ def hold_step(within, hold, spin, action, params, terms, reward, success):
 
 
 @njit(cache=True)
-def reorient_measure(q, w, target, inertia, params, prev_action, obs, rot, meas, within, terms):
+def reorient_measure(
+    q: Arr, w: Arr, target: Arr, inertia: Arr, params: Arr, prev_action: Arr, obs: Arr,
+    rot: Arr, meas: Arr, within: Arr, terms: Arr,
+) -> None:  # fmt: skip
     """Everything Reorient reads off a state, per env. In: ``q`` (N, 1, 4), ``w`` (N, 1, 3)
     world angular velocity, ``target`` (N, 4), ``inertia`` (3, 3) body axes, ``params`` =
     [spin_scale, observation limit, angle_threshold, spin_threshold, angle_coef],
@@ -173,9 +183,10 @@ def reorient_measure(q, w, target, inertia, params, prev_action, obs, rot, meas,
 
 @njit(cache=True)
 def landing_measure(
-    x, q, v, w, face_normal, corners, inertia, params, prev_action, bounce, obs, rot, meas,
-    ints, within, terms,
-):  # fmt: skip
+    x: Arr, q: Arr, v: Arr, w: Arr, face_normal: Arr, corners: Arr, inertia: Arr, params: Arr,
+    prev_action: Arr, bounce: Arr, obs: Arr, rot: Arr, meas: Arr, ints: Arr, within: Arr,
+    terms: Arr,
+) -> None:  # fmt: skip
     """Everything BoxLanding reads off a state, per env. In: the state's (N, 1, ·) arrays,
     ``face_normal`` (N, 3) the target face's outward normal (body axes), ``corners`` (8, 3),
     ``inertia`` (3, 3), ``params`` = [mass, gravity, spin_scale, velocity_scale, height_limit,
