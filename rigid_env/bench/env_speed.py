@@ -121,8 +121,10 @@ def _single_line(rate: EnvRate) -> str:
     per_step = 1e6 * rate.wall_s / rate.env_steps
     physics = ""
     if not math.isnan(rate.physics_s):
+        own = 1e6 * (rate.wall_s - rate.physics_s) / rate.env_steps  # the env layer's own cost
         physics = (
             f", physics {1e6 * rate.physics_s / rate.env_steps:.1f} µs = {rate.physics_share:.0%}"
+            f", env layer {own:.1f} µs"
         )
     return f"single env      : {rate.steps_per_s:10.1f} steps/s  ({per_step:.1f} µs/step{physics})"
 
