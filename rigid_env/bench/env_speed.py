@@ -1,16 +1,20 @@
-"""Step rates of an environment: single env, native vector env, and the physics share of each.
+"""Step rates of environments: single env, native vector env, and the physics share of each.
 
     python -m rigid_env.bench.env_speed RigidEnv/BoxLanding-v0 --num-envs 1024 --seconds 10
+    python -m rigid_env.bench.env_speed --seconds 5      # both RigidEnv envs beside Hopper-v5
 
-Both envs run random actions (with their resets) for about ``--seconds`` each. The simulator's
-``Scene.step`` is timed by its public per-stage timer (``scene.timer = StageTimer()``), so the
-report separates the physics from the environment's own overhead (observation, reward, info,
-validation, resets). :func:`run` is the
-one env-speed loop of the benchmarks (``rigid_env.bench.speed`` uses it too).
+Every env runs random actions (with its resets) for about ``--seconds`` per measurement. The
+simulator's ``Scene.step`` is timed by its public per-stage timer (``scene.timer =
+StageTimer()``), so the report separates the physics from the environment's own overhead
+(observation, reward, info, validation, resets). ``--peer`` (default ``Hopper-v5``, Gymnasium's
+MuJoCo env, when ``gymnasium[mujoco]`` is installed; ``none`` to skip) is run the same way as a
+single env in the same process, and each env's single rate is printed as a ratio to it.
+:func:`run` is the one env-speed loop of the benchmarks (``rigid_env.bench.speed`` uses it too).
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -28,6 +32,8 @@ PROG = "python -m rigid_env.bench.env_speed"
 MIN_SECONDS = 0.01  # long enough for at least one step to be timed
 
 ACTION_POOL = 64  # random actions drawn before timing and cycled, so drawing is not timed
+RIGID_ENVS = ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
+PEER = "Hopper-v5"  # Gymnasium's MuJoCo v5 hopper: the reference single-env rate
 
 
 @dataclass(frozen=True)
@@ -36,7 +42,7 @@ class EnvRate:
 
     env_steps: int
     wall_s: float
-    physics_s: float
+    physics_s: float  # NaN for an env that is not a rigid_env task (a peer)
 
     @property
     def steps_per_s(self) -> float:
@@ -47,9 +53,13 @@ class EnvRate:
         return self.physics_s / self.wall_s
 
 
-def _timed_scene(env: Any) -> StageTimer:
-    """Attach a public per-stage timer to the task's scene; its ``step_seconds`` is the physics."""
-    timer = env.unwrapped.task.scene.timer = StageTimer()
+def _timed_scene(env: Any) -> StageTimer | None:
+    """Attach a public per-stage timer to the task's scene; its ``step_seconds`` is the physics.
+    None for an env without a rigid_env task (a peer such as Hopper-v5)."""
+    task = getattr(env.unwrapped, "task", None)
+    if task is None:
+        return None
+    timer = task.scene.timer = StageTimer()
     return timer
 
 
@@ -85,35 +95,80 @@ def run(
         if not vector and (terminated or truncated):
             env.reset()
         count += 1
-    return EnvRate(count * n, time.perf_counter() - start, physics.step_seconds)
+    wall = time.perf_counter() - start
+    return EnvRate(count * n, wall, math.nan if physics is None else physics.step_seconds)
+
+
+def peer_env(env_id: str) -> gym.Env | None:
+    """``gymnasium.make(env_id)``, or None when it cannot be made here (e.g. Hopper-v5 without
+    ``gymnasium[mujoco]``); the reason is printed."""
+    try:
+        return gym.make(env_id)
+    except (gym.error.Error, ImportError) as err:
+        print(f"peer {env_id}: not run ({type(err).__name__}: {err})")
+        return None
+
+
+def _peer_engine() -> str:
+    try:
+        import mujoco
+    except ImportError:
+        return f"gymnasium {gym.__version__}"
+    return f"gymnasium {gym.__version__}, MuJoCo {mujoco.__version__}"
+
+
+def _single_line(rate: EnvRate) -> str:
+    per_step = 1e6 * rate.wall_s / rate.env_steps
+    physics = ""
+    if not math.isnan(rate.physics_s):
+        own = 1e6 * (rate.wall_s - rate.physics_s) / rate.env_steps  # the env layer's own cost
+        physics = (
+            f", physics {1e6 * rate.physics_s / rate.env_steps:.1f} µs = {rate.physics_share:.0%}"
+            f", env layer {own:.1f} µs"
+        )
+    return f"single env      : {rate.steps_per_s:10.1f} steps/s  ({per_step:.1f} µs/step{physics})"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
-    parser.add_argument("env_id", type=cli.env_id)
+    parser.add_argument(
+        "env_id", type=cli.env_id, nargs="*", help=f"default: {' and '.join(RIGID_ENVS)}"
+    )
     parser.add_argument("--num-envs", type=cli.positive_int, default=1024)
     parser.add_argument("--seconds", type=cli.positive_float, default=10.0)
     parser.add_argument("--seed", type=cli.nonnegative_int, default=0)
+    parser.add_argument(
+        "--peer", default=PEER, help=f"single env measured beside, default {PEER}; none: skip"
+    )
     args = parser.parse_args(argv)
     if args.seconds < MIN_SECONDS:
         raise cli.UsageError(f"--seconds must be at least {MIN_SECONDS}, got {args.seconds}")
 
-    single = run(gym.make(args.env_id), seconds=args.seconds, seed=args.seed)
-    per_step = 1e3 * single.wall_s / single.env_steps
-    print(
-        f"single env      : {single.steps_per_s:10.1f} steps/s  ({per_step:.2f} ms/step, "
-        f"physics {1e3 * single.physics_s / single.env_steps:.2f} ms = {single.physics_share:.0%})"
-    )
-    vec_env = gym.make_vec(
-        args.env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point"
-    )
-    vec = run(vec_env, seconds=args.seconds, seed=args.seed)
-    batch_ms = 1e3 * vec.wall_s * args.num_envs / vec.env_steps
-    print(
-        f"vector env x{args.num_envs:<5d}: {vec.steps_per_s:10.1f} env-steps/s  "
-        f"({batch_ms:.1f} ms/batch step, physics {vec.physics_share:.0%})  "
-        f"= {vec.steps_per_s / single.steps_per_s:.0f}x the single env"
-    )
+    singles = {}
+    for env_id in args.env_id or RIGID_ENVS:
+        print(env_id)
+        single = singles[env_id] = run(gym.make(env_id), seconds=args.seconds, seed=args.seed)
+        print(_single_line(single))
+        vec_env = gym.make_vec(
+            env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point"
+        )
+        vec = run(vec_env, seconds=args.seconds, seed=args.seed)
+        batch_ms = 1e3 * vec.wall_s * args.num_envs / vec.env_steps
+        print(
+            f"vector env x{args.num_envs:<5d}: {vec.steps_per_s:10.1f} env-steps/s  "
+            f"({batch_ms:.1f} ms/batch step, physics {vec.physics_share:.0%})  "
+            f"= {vec.steps_per_s / single.steps_per_s:.0f}x the single env"
+        )
+    peer = None if args.peer.lower() == "none" else peer_env(args.peer)
+    if peer is not None:
+        print(f"{args.peer} (peer: {_peer_engine()}, single env)")
+        rate = run(peer, seconds=args.seconds, seed=args.seed)
+        print(_single_line(rate))
+        for env_id, single in singles.items():
+            print(
+                f"{env_id} single / {args.peer} single: "
+                f"{single.steps_per_s / rate.steps_per_s:.2f}x"
+            )
     return 0
 
 

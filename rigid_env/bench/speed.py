@@ -353,7 +353,8 @@ def env_ids() -> list[str]:
 
 def env_speed(cfg: dict, progress=None) -> list[dict]:
     """Env steps per second: one env (``gymnasium.make``), and native vector envs of N, each
-    run by :func:`rigid_env.bench.env_speed.run`."""
+    run by :func:`rigid_env.bench.env_speed.run`; then Gymnasium's Hopper-v5 as a single env
+    beside them when MuJoCo is installed (``peers.available()``; no physics share)."""
     import gymnasium
 
     from . import env_speed as loop
@@ -387,6 +388,20 @@ def env_speed(cfg: dict, progress=None) -> list[dict]:
                     "physics_share": vec.physics_share,
                 }
             )
+    peer = loop.peer_env(loop.PEER) if peers.available() else None
+    if peer is not None:
+        if progress:
+            progress(f"speed env {loop.PEER}")
+        rate = loop.run(peer, steps=cfg["env_steps"] * 5)
+        peer.close()
+        rows.append(
+            {
+                "env": loop.PEER,
+                "mode": "single (peer)",
+                "num_envs": 1,
+                "env_steps_per_s": rate.steps_per_s,
+            }
+        )
     return rows
 
 

@@ -173,9 +173,9 @@ import numpy as np
 from .. import sim
 from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
+from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, dot, step_body_torque
-from .kinematics import apply_transpose, rotation_matrices
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, step_body_torque
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
 
@@ -296,10 +296,27 @@ class BoxLandingTask(HoldTask):
             position=(0.0, 0.0, cfg.height_range[0]), batch_shape=(n,)
         )
         self.face = np.full(n, FACES.index("-z" if self.random_face else str(cfg.target_face)))
+        self._face_normal = FACE_NORMALS[self.face]
         self.touchdowns = np.zeros(n, dtype=np.int64)
         self._bounce = np.zeros(n, dtype=bool)
+        self._params = np.array(  # what landing_measure reads, in its order
+            [
+                self.body.mass,
+                GRAVITY,
+                self.spin_scale,
+                VELOCITY_SCALE,
+                HEIGHT_LIMIT,
+                OBS_LIMIT,
+                cfg.contact_tolerance,
+                cfg.face_threshold,
+                cfg.speed_threshold,
+                cfg.spin_threshold,
+                cfg.face_weight / np.pi,
+                cfg.bounce_weight,
+            ]
+        )
         self._measure()
-        self.touching = self._gaps.min(axis=1) < cfg.contact_tolerance
+        self.touching = self._meas[:, 7] < cfg.contact_tolerance  # the clearance
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
@@ -386,113 +403,99 @@ class BoxLandingTask(HoldTask):
             face = _face_index(target_face)
             self.face = np.array(self.face)
             self.face[index] = np.broadcast_to(face, (len(index),))
+            self._face_normal = FACE_NORMALS[self.face]  # changes only here
         self.state = state
         self._start_episode(index)
         self.touchdowns[index] = 0
         self._measure()
         self.touching = np.array(self.touching)
-        self.touching[index] = self._gaps[index].min(axis=1) < self.config.contact_tolerance
+        self.touching[index] = self._meas[index, 7] < self.config.contact_tolerance
 
     # --- stepping -------------------------------------------------------------------------------
 
-    def _lowest_corner(self, state: sim.State) -> np.ndarray:
-        """Height of the lowest corner, (N,): z + min over corners of (R r)_z, with R's last
-        row (2(xz − wy), 2(yz + wx), 1 − 2(x² + y²)) taken straight from q (Shoemake, "Animating
-        rotation with quaternion curves", SIGGRAPH 1985)."""
-        x, y, z, w = state.orientation[:, 0].T
-        row = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-        c = self.corners
-        heights = row[0][:, None] * c[:, 0] + row[1][:, None] * c[:, 1] + row[2][:, None] * c[:, 2]
-        return state.position[:, 0, 2] + heights.min(axis=1)
-
     def _advance(self, torque: np.ndarray) -> None:
-        """Step the physics, latching the touch switches at every physics step, and count a
-        touchdown when the box touched the ground after a period in which it did not."""
+        """Step the physics, latching the touch switches at every physics step (the lowest
+        corner within ``contact_tolerance`` of the ground), and count a touchdown when the box
+        touched the ground after a period in which it did not."""
         touched = np.zeros(self.num_envs, dtype=bool)
-        tolerance = self.config.contact_tolerance
-
-        def latch(state: sim.State) -> None:
-            touched[:] |= self._lowest_corner(state) < tolerance
-
-        self.state = step_body_torque(
-            self.scene, self.state, self._rot, torque, self.frame_skip, after=latch
+        tolerance, corners, latch = (
+            self.config.contact_tolerance,
+            self.corners,
+            kernels.latch_and_world_torque,
         )
-        touchdown = touched & ~self.touching
-        self._bounce = touchdown & (self.touchdowns > 0)
-        self.touchdowns = self.touchdowns + touchdown
+
+        def after(state: sim.State, world: np.ndarray) -> None:
+            latch(state.position, state.orientation, corners, tolerance, touched, torque, world)
+
+        self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip, after)
+        # touchdown = touched & ~touching; bounce = touchdown after an earlier one; count it.
+        self._bounce = np.empty(self.num_envs, dtype=bool)
+        kernels.count_touchdowns(touched, self.touching, self.touchdowns, self._bounce)
         self.touching = touched
 
     def _measure(self) -> None:
-        """Everything the observation, reward and info read off the current state."""
-        x, q, v, w = (a[:, 0] for a in self.state.arrays())
-        self._rot = rotation_matrices(q)
-        self._up = self._rot[:, 2, :]  # world +z in body axes: Rᵀ e_z is R's last row
-        normal = FACE_NORMALS[self.face]
-        down = -self._up
-        # θ between the target face normal and world −z, by atan2 (arccos loses digits near 0).
-        cross = np.cross(normal, down)
-        self._angle = np.arctan2(np.sqrt(dot(cross, cross)), dot(normal, down))
-        self._omega = apply_transpose(self._rot, w)  # Ω = Rᵀ ω
-        self._spin = np.sqrt(dot(self._omega, self._omega))
-        self._speed = np.sqrt(dot(v, v))
-        c = self.corners
-        self._gaps = (
-            x[:, 2:3]
-            + self._up[:, 0:1] * c[:, 0]
-            + self._up[:, 1:2] * c[:, 1]
-            + self._up[:, 2:3] * c[:, 2]
+        """Everything the observation, reward and info read off the current state: one
+        compiled call (``kernels.landing_measure``)."""
+        n = self.num_envs
+        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
+        self._ints = np.empty((n, 2), dtype=np.int64)
+        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
+        self._within_goal = np.empty(n, dtype=bool)
+        self._next_terms = np.zeros((n, len(self.reward_terms)))
+        state = self.state
+        kernels.landing_measure(
+            state.position,
+            state.orientation,
+            state.linear_velocity,
+            state.angular_velocity,
+            self._face_normal,
+            self.corners,
+            self.inertia,
+            self._params,
+            self.prev_action,
+            self._bounce,
+            self._obs,
+            self._rot,
+            self._meas,
+            self._ints,
+            self._within_goal,
+            self._next_terms,
         )
-        self._contact = self._gaps < self.config.contact_tolerance
-        self._contact_count = self._contact.sum(axis=1)
-        axis = np.argmax(np.abs(down), axis=1)
-        positive = np.take_along_axis(down, axis[:, None], axis=1)[:, 0] > 0
-        self._down_face = 2 * axis + np.where(positive, 0, 1)
-
-    def _observation_parts(self) -> dict[str, np.ndarray]:
-        x, v = self.state.position[:, 0], self.state.linear_velocity[:, 0]
-        return {
-            "height": np.clip(x[:, 2], 0.0, HEIGHT_LIMIT),
-            "clearance": np.clip(self._gaps.min(axis=1), 0.0, HEIGHT_LIMIT),
-            "linear_velocity": np.clip(v / VELOCITY_SCALE, -OBS_LIMIT, OBS_LIMIT),
-            "up": self._up,
-            "angular_velocity": np.clip(self._omega / self.spin_scale, -OBS_LIMIT, OBS_LIMIT),
-            "target_normal": FACE_NORMALS[self.face],
-            "corner_contacts": self._contact,
-            "previous_action": self.prev_action,
-        }
-
-    def _task_terms(self) -> dict[str, np.ndarray]:
-        cfg = self.config
-        return {
-            "reward_angle": -(cfg.face_weight / np.pi) * self._angle,
-            "reward_bounce": -cfg.bounce_weight * self._bounce,
-        }
-
-    def _within(self) -> np.ndarray:
-        cfg = self.config
-        return (
-            (self._contact_count > 0)
-            & (self._angle < cfg.face_threshold)
-            & (self._speed < cfg.speed_threshold)
-            & (self._spin < cfg.spin_threshold)
-        )
+        meas = self._meas
+        self._omega, self._angle, self._spin = meas[:, 0:3], meas[:, 3], meas[:, 4]
+        self._down_face = self._ints[:, 1]
 
     def _task_info(self) -> dict[str, np.ndarray]:
-        x, v = self.state.position[:, 0], self.state.linear_velocity[:, 0]
-        m = self.body.mass
-        body_momentum = self._omega @ self.inertia  # I0 Ω (I0 symmetric)
-        energy = 0.5 * (m * dot(v, v) + dot(self._omega, body_momentum)) + m * GRAVITY * x[:, 2]
+        meas = self._meas
         return {
-            "angle_error": self._angle.copy(),
-            "spin": self._spin.copy(),
-            "speed": self._speed.copy(),
-            "height": x[:, 2].copy(),
-            "clearance": self._gaps.min(axis=1),
-            "contact_count": self._contact_count.copy(),
+            "angle_error": meas[:, 3].copy(),
+            "spin": meas[:, 4].copy(),
+            "speed": meas[:, 5].copy(),
+            "height": meas[:, 6].copy(),
+            "clearance": meas[:, 7].copy(),
+            "contact_count": self._ints[:, 0].copy(),
             "touchdowns": self.touchdowns.copy(),
             "bounces": np.maximum(self.touchdowns - 1, 0),
-            "down_face": self._down_face.copy(),
+            "down_face": self._ints[:, 1].copy(),
             "target_face": np.array(self.face),
+            "energy": meas[:, 8].copy(),
+        }
+
+    def _task_single_info(self) -> dict[str, Any]:
+        angle, spin, speed, height, clearance, energy = self._meas[0, 3:9].tolist()
+        contact_count, down_face = self._ints[0].tolist()
+        touchdowns = self.touchdowns.item()
+        return {
+            "angle_error": angle,
+            "spin": spin,
+            "speed": speed,
+            "height": height,
+            "clearance": clearance,
+            "contact_count": contact_count,
+            "touchdowns": touchdowns,
+            "bounces": max(touchdowns - 1, 0),
+            "down_face": down_face,
+            "target_face": self.face.item(),
             "energy": energy,
         }
 
@@ -523,7 +526,7 @@ class BoxLandingTask(HoldTask):
             axis, angle = np.array([1.0, 0.0, 0.0]), (0.0 if cos > 0 else np.pi)
         else:
             axis, angle = axis / sin, math.atan2(sin, cos)
-        align = rotation_matrices(quat_from_axis_angle(axis, np.array(angle))[None])[0]
+        align = kernels.rotation_matrices(quat_from_axis_angle(axis, np.array(angle))[None])[0]
         position = np.array(
             [*self.state.position[i, 0, :2], abs(normal @ self.body.shape.half_extents)]
         )

@@ -86,6 +86,11 @@ class BatchedTask(ABC):
     def info(self) -> dict[str, np.ndarray]:
         """Fresh arrays with the env axis first (what users plot), incl. ``is_success``."""
 
+    def single_info(self) -> dict[str, Any]:
+        """:meth:`info` of a batch of one as a single env returns it (Python scalars for
+        per-env scalars, fresh arrays otherwise); tasks may override it with a cheaper path."""
+        return _single_info(self.info())
+
     @abstractmethod
     def view(self) -> View:
         """Camera and scenery (ground or not) for the renderer."""
@@ -145,7 +150,7 @@ class TaskEnv(gym.Env):
         return obs, float(reward[0]), bool(terminated[0]), False, info
 
     def _observe_and_render(self) -> tuple[np.ndarray, dict[str, Any]]:
-        obs, info = self.task.observation()[0], _single_info(self.task.info())
+        obs, info = self.task.observation()[0], self.task.single_info()
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -156,7 +161,7 @@ class TaskEnv(gym.Env):
         Counts as the start of an episode (hold timers and the previous action are cleared).
         """
         self.task.set_state(self._index, **state)
-        return self.task.observation()[0], _single_info(self.task.info())
+        return self.task.observation()[0], self.task.single_info()
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

@@ -22,9 +22,9 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import sim
+from . import kernels
 from .bodies import make_body
 from .core import BatchedTask
-from .kinematics import apply, rotation_matrices
 from .observations import observation_slices
 from .validation import (
     choice,
@@ -46,30 +46,27 @@ Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
 def step_body_torque(
     scene: sim.Scene,
     state: sim.State,
-    rot: np.ndarray,
     torque: np.ndarray,
     frame_skip: int,
-    after: Callable[[sim.State], None] | None = None,
+    after: Callable[[sim.State, np.ndarray], None] | None = None,
 ) -> sim.State:
     """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
 
     ``torque`` (N, 3) acts about the body's own axes, so it is rotated into the world at every
-    physics step with that step's starting orientation; ``rot`` (N, 3, 3) is R of ``state``,
-    which the caller already has. ``after(state)``, if given, runs after every physics step
-    (e.g. to latch contact sensors between actions). Returns the state.
+    physics step with that step's starting orientation (one compiled call, ``kernels``).
+    ``after(state, world)``, if given, runs after every physics step and must put the next
+    step's world torque (rotated by ``state``'s orientation) into ``world`` (N, 1, 3), e.g.
+    while latching contact sensors in the same call. Returns the state.
     """
+    world = np.empty((torque.shape[0], 1, 3))  # read by each step, rewritten for the next
+    kernels.world_torque(state.orientation, torque, world)
     for k in range(frame_skip):
-        if k:
-            rot = rotation_matrices(state.orientation[:, 0])
-        state = scene.step(state, torque=apply(rot, torque)[:, None, :])
+        state = scene.step(state, torque=world)
         if after is not None:
-            after(state)
+            after(state, world)
+        elif k + 1 < frame_skip:
+            kernels.world_torque(state.orientation, torque, world)
     return state
-
-
-def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of (N, 3) stacks, elementwise (exact whatever the batch size)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -158,8 +155,11 @@ class HoldTask(BatchedTask):
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
     per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
     :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
-    :meth:`_observation_parts`, :meth:`_task_terms`, :meth:`_within`, :meth:`_task_info`,
-    :meth:`view` and :meth:`frame`; :meth:`set_state` ends with :meth:`_start_episode`.
+    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`;
+    :meth:`set_state` ends with :meth:`_start_episode`.
+
+    The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
+    off the state in one call, and the shared hold timer and reward terms are one more.
     """
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
@@ -168,9 +168,13 @@ class HoldTask(BatchedTask):
 
     config: HoldTaskConfig
     state: sim.State
-    _rot: np.ndarray
-    _angle: np.ndarray
-    _spin: np.ndarray
+    # What _measure sets (each a fresh array):
+    _rot: np.ndarray  # (N, 3, 3) R(q)
+    _angle: np.ndarray  # (N,) the task's angle error
+    _spin: np.ndarray  # (N,) |Ω|
+    _obs: np.ndarray  # (N, obs size) float32, in the order of observation_bounds
+    _within_goal: np.ndarray  # (N,) bool
+    _next_terms: np.ndarray  # (N, len(reward_terms)), the task's own terms in its first columns
 
     def __init__(self, num_envs: int, config: HoldTaskConfig | None = None, **kwargs: Any):
         self.num_envs = positive_int(num_envs, "num_envs")
@@ -204,11 +208,22 @@ class HoldTask(BatchedTask):
             "reward_ctrl",
             "reward_success",
         )
+        # What kernels.hold_step reads: hold_steps, then the shared terms' coefficients
+        # (-spin_coef |Ω|, -ctrl_coef |a|², the success bonus).
+        self._hold_params = np.array(
+            [
+                self.hold_steps,
+                config.spin_weight / self.spin_scale,
+                config.action_weight / 3.0,
+                config.success_bonus,
+            ],
+            dtype=float,
+        )
 
         n = self.num_envs
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
-        self.terms: dict[str, np.ndarray] = {name: np.zeros(n) for name in self.reward_terms}
+        self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
 
     @classmethod
     def structure(cls) -> dict[str, int]:
@@ -219,27 +234,22 @@ class HoldTask(BatchedTask):
 
     @abstractmethod
     def _measure(self) -> None:
-        """Read everything off ``self.state``; must set ``_rot``, ``_angle`` and ``_spin``."""
-
-    @abstractmethod
-    def _observation_parts(self) -> dict[str, np.ndarray]:
-        """Each part of ``observation_bounds`` (clipped to its bounds), ``(N,)`` or ``(N, k)``."""
-
-    @abstractmethod
-    def _task_terms(self) -> dict[str, np.ndarray]:
-        """The task's own reward terms (``task_reward_terms``), after a step."""
-
-    @abstractmethod
-    def _within(self) -> np.ndarray:
-        """Whether each env is within the goal region now, ``(N,)`` bool."""
+        """Read everything off ``self.state`` (and ``prev_action``), setting the fresh arrays
+        listed on the class: ``_rot``, ``_angle``, ``_spin``, ``_obs`` (each part clipped to
+        its bounds), ``_within_goal`` and ``_next_terms`` (its own reward terms)."""
 
     @abstractmethod
     def _task_info(self) -> dict[str, np.ndarray]:
         """The task's own ``info`` entries (fresh arrays)."""
 
+    @abstractmethod
+    def _task_single_info(self) -> dict[str, Any]:
+        """Element 0 of :meth:`_task_info` for a batch of one: Python scalars for per-env
+        scalars, fresh arrays otherwise (the cheap path of a single env's step)."""
+
     def _advance(self, torque: np.ndarray) -> None:
         """Step the physics for one action (tasks with sensors to latch override this)."""
-        self.state = step_body_torque(self.scene, self.state, self._rot, torque, self.frame_skip)
+        self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip)
 
     # --- shared ---------------------------------------------------------------------------------
 
@@ -247,8 +257,7 @@ class HoldTask(BatchedTask):
         """Clear the per-episode memory of envs ``index`` (after a reset or a hand-built state)."""
         self.prev_action[index] = 0.0
         self.hold[index] = 0
-        for term in self.terms.values():
-            term[index] = 0.0
+        self.terms[index] = 0.0
 
     def _edited_state(self, index: np.ndarray, **values: Any) -> sim.State:
         """The current state with ``values`` (position, orientation, linear_velocity,
@@ -271,33 +280,37 @@ class HoldTask(BatchedTask):
         self._advance(action * self.max_torque)  # body-frame torque, (N, 3)
         self.prev_action = action
         self._measure()
-        self.hold = np.where(self._within(), self.hold + 1, 0)
-        success = self.hold >= self.hold_steps
-        cfg = self.config
-        self.terms = {
-            **self._task_terms(),
-            "reward_spin": -(cfg.spin_weight / self.spin_scale) * self._spin,
-            "reward_ctrl": -(cfg.action_weight / 3.0) * dot(action, action),
-            "reward_success": cfg.success_bonus * success,
-        }
-        reward = np.zeros(self.num_envs)
-        for term in self.terms.values():  # in the order of reward_terms
-            reward = reward + term
-        terminated = success if cfg.terminate_on_success else np.zeros(self.num_envs, bool)
+        n, cfg = self.num_envs, self.config
+        terms, reward, success = self._next_terms, np.empty(n), np.empty(n, dtype=bool)
+        kernels.hold_step(
+            self._within_goal,
+            self.hold,
+            self._spin,
+            action,
+            self._hold_params,
+            terms,
+            reward,
+            success,
+        )
+        self.terms = terms
+        terminated = success if cfg.terminate_on_success else np.zeros(n, bool)
         return reward, terminated
 
     def observation(self) -> np.ndarray:
-        obs = np.empty((self.num_envs, self.single_observation_space.shape[0]), np.float32)
-        for name, part in self._observation_parts().items():
-            obs[:, self._slices[name]] = part.reshape(self.num_envs, -1)
-        return obs
+        return self._obs.copy()
 
     def info(self) -> dict[str, np.ndarray]:
         return {
             **self._task_info(),
-            **{name: term.copy() for name, term in self.terms.items()},
+            **{name: self.terms[:, k].copy() for k, name in enumerate(self.reward_terms)},
             "is_success": self.hold >= self.hold_steps,
         }
+
+    def single_info(self) -> dict[str, Any]:
+        info = self._task_single_info()
+        info.update(zip(self.reward_terms, self.terms[0].tolist(), strict=True))
+        info["is_success"] = bool(self.hold[0] >= self.hold_steps)
+        return info
 
     def status(self, i: int) -> str:
         """Env ``i``'s goal status for the frame's text."""

@@ -143,10 +143,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .. import sim
-from ..sim.rotation import quat_conjugate, quat_rotate
+from ..sim.rotation import quat_rotate
+from . import kernels
 from .core import TaskEnv, TaskVectorEnv
 from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
-from .kinematics import apply, apply_transpose, left_matrices, rotation_matrices
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
@@ -212,7 +212,16 @@ class ReorientTask(HoldTask):
         n = self.num_envs
         self.state = self.scene.initial_state(batch_shape=(n,))
         self.target = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        self._target_left = left_matrices(quat_conjugate(self.target))  # q_err = L(q_t⁻¹) q
+        cfg = self.config
+        self._params = np.array(  # what reorient_measure reads, in its order
+            [
+                self.spin_scale,
+                OBS_LIMIT,
+                cfg.angle_threshold,
+                cfg.spin_threshold,
+                cfg.angle_weight / np.pi,
+            ]
+        )
         self._measure()
 
     def build_scene(self) -> sim.Scene:
@@ -255,7 +264,6 @@ class ReorientTask(HoldTask):
         )
         if target is not None:
             self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
-            self._target_left = left_matrices(quat_conjugate(self.target))
         self.state = state
         self._start_episode(index)
         self._measure()
@@ -263,37 +271,47 @@ class ReorientTask(HoldTask):
     # --- measurements, observation, reward ------------------------------------------------------
 
     def _measure(self) -> None:
-        """Error quaternion, body angular velocity, angle and spin of the current state."""
-        q = self.state.orientation[:, 0]
-        self._rot = rotation_matrices(q)
-        err = apply(self._target_left, q)
-        err *= np.copysign(1.0, err[:, 3:])  # w >= 0: continuous near the goal
-        self._q_err = err
-        self._omega = apply_transpose(self._rot, self.state.angular_velocity[:, 0])  # Ω = Rᵀ ω
-        self._angle = 2.0 * np.arctan2(np.linalg.norm(err[:, :3], axis=1), err[:, 3])
-        self._spin = np.linalg.norm(self._omega, axis=1)
-
-    def _observation_parts(self) -> dict[str, np.ndarray]:
-        return {
-            "error_quaternion": self._q_err,
-            "angular_velocity": np.clip(self._omega / self.spin_scale, -OBS_LIMIT, OBS_LIMIT),
-            "previous_action": self.prev_action,
-        }
-
-    def _task_terms(self) -> dict[str, np.ndarray]:
-        return {"reward_angle": -(self.config.angle_weight / np.pi) * self._angle}
-
-    def _within(self) -> np.ndarray:
-        cfg = self.config
-        return (self._angle < cfg.angle_threshold) & (self._spin < cfg.spin_threshold)
+        """Error quaternion, body angular velocity, angle, spin, observation, goal and the angle
+        term of the current state: one compiled call (``kernels.reorient_measure``)."""
+        n = self.num_envs
+        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
+        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
+        self._within_goal = np.empty(n, dtype=bool)
+        self._next_terms = np.zeros((n, len(self.reward_terms)))
+        kernels.reorient_measure(
+            self.state.orientation,
+            self.state.angular_velocity,
+            self.target,
+            self.inertia,
+            self._params,
+            self.prev_action,
+            self._obs,
+            self._rot,
+            self._meas,
+            self._within_goal,
+            self._next_terms,
+        )
+        self._omega, self._angle, self._spin = (
+            self._meas[:, 0:3],
+            self._meas[:, 3],
+            self._meas[:, 4],
+        )
 
     def _task_info(self) -> dict[str, np.ndarray]:
-        body_momentum = self._omega @ self.inertia  # I0 Ω (I0 symmetric)
         return {
             "angle_error": self._angle.copy(),
             "spin": self._spin.copy(),
-            "energy": 0.5 * np.einsum("ij,ij->i", self._omega, body_momentum),
-            "angular_momentum": apply(self._rot, body_momentum),  # L = R I0 Ω
+            "energy": self._meas[:, 5].copy(),
+            "angular_momentum": self._meas[:, 6:9].copy(),  # L = R I0 Ω, world axes
+        }
+
+    def _task_single_info(self) -> dict[str, Any]:
+        angle, spin, energy = self._meas[0, 3:6].tolist()
+        return {
+            "angle_error": angle,
+            "spin": spin,
+            "energy": energy,
+            "angular_momentum": self._meas[0, 6:9].copy(),
         }
 
     # --- rendering ------------------------------------------------------------------------------
@@ -314,7 +332,10 @@ class ReorientTask(HoldTask):
         origin = np.zeros(3)
         body = Item(self.mesh, self._rot[i], origin, color=(214, 178, 92), axes_length=axes)
         ghost = Item(
-            self.mesh, rotation_matrices(self.target[i : i + 1])[0], origin, axes_length=axes
+            self.mesh,
+            kernels.rotation_matrices(self.target[i : i + 1])[0],
+            origin,
+            axes_length=axes,
         )
         text = (
             f"angle error {np.degrees(self._angle[i]):6.1f} deg",

@@ -12,6 +12,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from ..sim.validation import finite_array, nonnegative_scalar, positive_scalar, unit_interval
+from . import kernels
 
 __all__ = [
     "action_batch",
@@ -88,6 +89,7 @@ def action_batch(action: Any, shape: tuple[int, ...], name: str = "action") -> n
         ) from None
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    # One compiled pass (numpy's isfinite, all and clip cost ~8 µs on a 3-vector).
+    if not kernels.finite_clip(arr.reshape(-1)):
         raise ValueError(f"{name} contains NaN or infinity: {action!r}")
-    return np.clip(arr, -1.0, 1.0, out=arr)
+    return arr

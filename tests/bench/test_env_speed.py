@@ -5,10 +5,12 @@ Rates are machine noise and never asserted; what the loop counts and times is.
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import pytest
 
-from rigid_env.bench import env_speed, speed
+from rigid_env.bench import env_speed, peers, speed
 
 ID = "RigidEnv/Reorient-v0"
 
@@ -27,9 +29,33 @@ def test_run_counts_env_steps_and_times_the_physics_inside_the_wall_time():
 
 def test_speed_reports_every_env_single_and_vector_with_the_same_loop():
     rows = speed.env_speed({"env_steps": 2, "env_batches": (1, 3)})
-    assert {(r["env"], r["mode"], r["num_envs"]) for r in rows} == {
+    ours = [r for r in rows if r["env"].startswith("RigidEnv/")]
+    assert {(r["env"], r["mode"], r["num_envs"]) for r in ours} == {
         (env_id, mode, n)
         for env_id in ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
         for mode, n in (("single", 1), ("vector", 1), ("vector", 3))
     }
-    assert all(r["env_steps_per_s"] > 0 and 0 < r["physics_share"] < 1 for r in rows)
+    assert all(r["env_steps_per_s"] > 0 and 0 < r["physics_share"] < 1 for r in ours)
+    # Hopper-v5 beside them exactly when MuJoCo is there, without a physics share to report.
+    peer = [r for r in rows if r not in ours]
+    expected = [("Hopper-v5", "single (peer)", 1)] if peers.available() else []
+    assert [(r["env"], r["mode"], r["num_envs"]) for r in peer] == expected
+    assert all(r["env_steps_per_s"] > 0 and "physics_share" not in r for r in peer)
+
+
+def test_a_peer_env_is_timed_by_the_same_loop_without_a_physics_figure():
+    # Pendulum-v1 stands in for Hopper-v5 (no MuJoCo needed): not a rigid_env task, so the
+    # loop has no scene to time and reports the physics as NaN rather than a made-up share.
+    rate = env_speed.run(gym.make("Pendulum-v1"), steps=4)
+    assert rate.env_steps == 4 and rate.wall_s > 0
+    assert math.isnan(rate.physics_s)
+
+
+def test_main_prints_each_env_and_its_ratio_to_the_peer(capsys):
+    argv = [ID, "--seconds", "0.05", "--num-envs", "2", "--peer", "Pendulum-v1"]
+    assert env_speed.main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("single env      :") == 2 and out.count("vector env x2") == 1
+    assert f"{ID} single / Pendulum-v1 single:" in out
+    assert env_speed.main([ID, "--seconds", "0.05", "--num-envs", "2", "--peer", "none"]) == 0
+    assert "single /" not in capsys.readouterr().out
