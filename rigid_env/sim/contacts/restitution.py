@@ -1,0 +1,136 @@
+"""Restitution: impacts resolved one after another in time order within the step.
+
+A semi-implicit step stores v₁ ≈ v(t₀ + Δt/2): velocities are step means, positions follow
+x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inelastic solve
+(``solve.py``), each at the time its contact closes:
+
+1. Per contact, its gap d (at the step's start, linearised: d + τ v_n later) closes after
+   τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
+   the material's threshold, not yet struck this step) is the next event; all impact contacts
+   closing at that instant (a box landing flat: four corners) are struck together.
+2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
+   only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
+   so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
+   moves, reaches the third, …) and the loop goes on until no impact falls within the step
+   (or ``max_impacts``, reported).
+
+Targets. Under a constant non-contact acceleration a (gravity), the stored velocities and
+positions of semi-implicit Euler are exact samples of a parabola whose energy per unit mass
+along the normal, H = ½ w² − a d with w = v_n − ½ a Δt (the velocity at the step's instant,
+i.e. half a step of forces removed), is conserved in free flight. Its impact speed at the
+ground is v_c = √(w² + 2c), c = −(a d + ⅛ a² Δt²), and Newton's law on the instantaneous
+velocities, ε v_c out, scales the parabola's height above the contact by ε² — whatever the
+impact's phase within the step. Leaving from the stored position (gap d) with that energy gives
+
+    w⁺ = √(ε² v_c² − 2c),   v_n⁺ = ½ a Δt + w⁺,
+
+so a ball dropped with ε = 1 reaches its height again to rounding, and with ε < 1 the apexes
+fall as ε²ᵏ h (a per contact: the normal part of half the step's non-contact velocity change).
+
+Energy guard. Newton's law at several simultaneous contacts can add energy (a tumbling box
+with ε = 1). Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] such that
+neither the kinetic energy nor the kinetic energy of the instantaneous velocities u − s
+(s = half the step's non-contact velocity change) grows: both are convex quadratics in α, so
+α = min(1, −2 z·dz / |dz|²) over the two (z = M^(1/2) u coordinates). The second keeps the
+step's modified energy KE + PE − ½ Δt m g·v (conserved by semi-implicit Euler in free flight
+under gravity) from growing: an impact never adds energy, at any Δt.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .assembly import scaled_velocity
+from .solve import gauss_seidel
+
+_OUT = -np.inf  # normal target of a contact out of play in an event
+
+
+def impact_targets(vn, s, d, eps, dt):
+    """Impact speeds v_c (≥ 0) and post-impact normal velocities of contacts with normal
+    velocity ``vn`` (< 0 approaching), half-step non-contact change ``s``, start gap ``d``."""
+    c = -(2.0 * s * d / dt + 0.5 * s * s)
+    w = vn - s
+    vc2 = np.maximum(w * w + 2.0 * c, 0.0)
+    out = s + np.sqrt(np.maximum(eps * eps * vc2 - 2.0 * c, 0.0))
+    return np.sqrt(vc2), out
+
+
+def resolve_impacts(layout, rows, u0, u1, dt, settings):
+    """Impacts of the step in time order. Returns ``(u, impulse, events, capped)``: the
+    velocities after them (N, n, 6), the normal impulse each contact received (N, C), the
+    number of events (N,) and whether an element still had impacts at ``max_impacts``."""
+    size, c = rows.gap.shape
+    impulse = np.zeros((size, c))
+    events = np.zeros(size, int)
+    capped = np.zeros(size, bool)
+    if not np.any(layout.eps > 0):
+        return u1, impulse, events, capped
+    vn0 = rows.velocity(u0, layout)[..., 0]
+    vn1 = rows.velocity(u1, layout)[..., 0]
+    s = 0.5 * (vn1 - vn0)
+    d = np.maximum(rows.gap, 0.0)
+    shift = scaled_velocity(layout, 0.5 * (u1 - u0), rows.scale)[..., 0]
+    a_nn = rows.normal_delassus
+    u = np.array(u1)
+    gap = np.array(rows.gap)
+    elapsed = np.zeros(size)
+    struck = np.zeros((size, c), bool)
+    idx = np.arange(size)
+    for _ in range(settings.max_impacts + 1):
+        sub = rows.take(idx) if len(idx) < size else rows
+        vn = sub.velocity(u[idx], layout)[..., 0]
+        speed, target = impact_targets(vn, s[idx], d[idx], layout.eps, dt)
+        eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
+        g = gap[idx]
+        tau = np.where(eligible, np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0), np.inf)
+        first = np.min(tau, axis=-1)
+        going = first < dt - elapsed[idx]
+        if not going.any():
+            break
+        if events[idx].max(initial=0) >= settings.max_impacts:
+            capped[idx[going]] = True
+            break
+        keep = np.flatnonzero(going)
+        idx, vn, tau, target, g = idx[keep], vn[keep], tau[keep], target[keep], g[keep]
+        eligible, first = eligible[keep], first[keep]
+        sub = rows.take(idx)
+        g = g + first[:, None] * vn
+        gap[idx] = g
+        elapsed[idx] += first
+        # Contacts closing together: within a relative 1e-9 of the event's time.
+        hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
+        struck[idx] |= hit
+        lam_n, _, _ = gauss_seidel(
+            a_nn[idx],
+            vn[..., None],
+            np.where(hit, target, _OUT),
+            layout.mu,
+            np.zeros((len(idx), c, 1)),
+            settings,
+        )
+        lam = np.zeros((len(idx), c, 3))
+        lam[..., 0] = lam_n[..., 0]
+        du = sub.velocity_change(lam, layout)
+        ui = u[idx]
+        z = scaled_velocity(layout, ui, sub.scale)[..., 0]
+        dz = scaled_velocity(layout, du, sub.scale)[..., 0]
+        alpha = _energy_step(z, dz, shift[idx])
+        u[idx] = ui + alpha[:, None, None] * du
+        impulse[idx] += alpha[:, None] * lam_n[..., 0]
+        events[idx] += 1
+    return u, impulse, events, capped
+
+
+def _energy_step(z, dz, shift):
+    """Largest α ∈ [0, 1] with ½|z + α dz|² ≤ ½|z|² and ½|z − shift + α dz|² ≤ ½|z − shift|²."""
+    quad = np.sum(dz * dz, axis=-1)
+    safe = np.where(quad > 0, quad, 1.0)
+    alpha = np.ones(len(z))
+    for ref in (z, z - shift):
+        lin = np.sum(ref * dz, axis=-1)
+        alpha = np.minimum(alpha, np.where(quad > 0, -2.0 * lin / safe, 1.0))
+    return np.clip(alpha, 0.0, 1.0)
+
+
+__all__ = ["impact_targets", "resolve_impacts"]
