@@ -11,15 +11,14 @@ find impulses λ with v = b + A λ such that, per contact,
 
 Gauss–Seidel visits the contacts in turn (Erleben, "Velocity-based shock propagation for
 multibody dynamics animation", ACM TOG 2007; Catto's sequential impulses, GDC 2005): the normal
-row by its exact 1-D solve, then the tangent pair by a projected gradient step of length
-1/ρ(A_tt) onto the disk. That step keeps the fixed point exactly Coulomb's (the impulse opposes
-the sliding velocity, so a box sliding diagonally keeps its yaw), where a 2×2 solve followed by
-a radial projection would skew it. Each sweep is a descent step of a convex quadratic over a
+row by its exact 1-D solve, then the tangent pair by its exact 2-D solve over the friction disk
+(``_disk_step``: the minimiser in the A_tt metric, not a radial projection, which would skew
+the friction away from the sliding direction and turn a box sliding diagonally). Each sweep is a descent step of a convex quadratic over a
 product of convex sets, so the iteration converges (Jourdan, Alart & Jean, 1998 for the
 frictional case with fixed cone radii).
 
-Stopping: a batch element has converged when a whole sweep changes no contact velocity by more
-than ``tolerance`` times its velocity scale (the largest free contact velocity or target of that
+Stopping: a batch element has converged when a whole sweep changes no contact velocity (A Δλ
+over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact velocity or target of that
 element). Converged elements drop out; an element that reaches ``max_iterations`` is reported
 (``Report``) and its impulse, if it would add kinetic energy, is cut back along its own
 direction (``dissipative``).
@@ -32,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAX_ITERATIONS = 200
+MAX_ITERATIONS = 500
 TOLERANCE = 1e-12
 MAX_IMPACTS = 32
 
@@ -104,21 +103,18 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
         att = np.stack(
             [delassus[:, 3 * i + 1 : 3 * i + 3, 3 * i + 1 : 3 * i + 3] for i in range(c)], 1
         )
-        half_tr = 0.5 * (att[..., 0, 0] + att[..., 1, 1])
-        half_df = 0.5 * (att[..., 0, 0] - att[..., 1, 1])
-        rho = half_tr + np.sqrt(half_df**2 + att[..., 0, 1] ** 2)  # ρ(A_tt) per contact
-        inv_t = 1.0 / rho
+        eig, basis = np.linalg.eigh(att)  # A_tt = Q diag(e) Qᵀ per contact
         coupling = np.stack([delassus[:, 3 * i + 1 : 3 * i + 3, 3 * i] for i in range(c)], 1)
         budget = np.zeros((size, c)) if extra is None else extra
     idx = np.arange(size)
     data = [delassus, free, target, inv_n, scale]
     if r == 3:
-        data += [inv_t, coupling, budget]
+        data += [att, eig, basis, coupling, budget]
     work = lam.copy()
     for sweep in range(1, settings.max_iterations + 1):
         a, b, t, i_n, sc = data[:5]
-        change = np.zeros(len(idx))
         flat = work.reshape(len(idx), -1)
+        before = flat.copy()
         for i in range(c):
             rows = slice(r * i, r * i + r)
             v = b[:, i] + np.einsum("nrk,nk->nr", a[:, rows], flat)
@@ -126,20 +122,17 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
             ln = np.maximum(ln_old - (v[:, 0] - t[:, i]) * i_n[:, i], 0.0)
             dn = ln - ln_old
             flat[:, r * i] = ln
-            step = np.abs(dn) / i_n[:, i]
             if r == 3:
-                i_t, cp, bud = data[5:]
+                att_, eig_, q_, cp, bud = data[5:]
                 vt = v[:, 1:] + cp[:, i] * dn[:, None]
                 lt_old = flat[:, r * i + 1 : r * i + 3]
-                lt = lt_old - vt * i_t[:, i, None]
-                norm = np.sqrt(np.sum(lt * lt, axis=-1))
-                cap = mu[i] * (ln + bud[:, i])
-                shrink = np.where(norm > cap, cap / np.where(norm > 0, norm, 1.0), 1.0)
-                lt = lt * shrink[:, None]
-                dt_ = lt - lt_old
+                lt = _disk_step(
+                    att_[:, i], eig_[:, i], q_[:, i], lt_old, vt, mu[i] * (ln + bud[:, i])
+                )
                 flat[:, r * i + 1 : r * i + 3] = lt
-                step = np.maximum(step, np.sqrt(np.sum(dt_ * dt_, axis=-1)) / i_t[:, i])
-            change = np.maximum(change, step)
+        # The sweep's effect on the contact velocities, A Δλ: impulses that move only within
+        # the null space of redundant contacts (four corners of a face) change no motion.
+        change = np.max(np.abs(np.einsum("nij,nj->ni", a, flat - before)), axis=-1)
         done = change <= settings.tolerance * sc
         sweeps[idx] = sweep
         if done.any():
@@ -153,6 +146,40 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
             data = [d[keep] for d in data]
     lam[idx] = work
     return lam, sweeps, converged
+
+
+NEWTON_STEPS = 8  # the secular equation's Newton iteration converges quadratically from γ = 0
+
+
+def _disk_step(att, eig, q, lt, vt, cap):
+    """The tangent impulse (N, 2) that minimises the contact's kinetic energy over the friction
+    disk |λ_t| ≤ cap: the sticking impulse λ_t − A_tt⁻¹ v_t if it lies inside, else the point
+    of the circle (A_tt + γ I) λ = A_tt λ_t − v_t with γ ≥ 0 from the secular equation
+    1/|λ(γ)| = 1/cap, solved by Newton's method (Moré & Sorensen, "Computing a trust region
+    step", 1983). At that point the sliding velocity after the update is −γ λ: the impulse
+    opposes the sliding exactly (Coulomb's maximal dissipation)."""
+    rhs = np.einsum("nij,nj->ni", att, lt) - vt
+    p = np.einsum("nji,nj->ni", q, rhs)  # Qᵀ rhs
+    inside_l = p / eig
+    norm = np.sqrt(np.sum(inside_l * inside_l, axis=-1))
+    out = norm > cap
+    if not out.any():
+        return np.einsum("nij,nj->ni", q, inside_l)
+    gamma = np.zeros(len(p))
+    p2 = p * p
+    safe_cap = np.where(cap > 0, cap, 1.0)
+    for _ in range(NEWTON_STEPS):
+        d = eig + gamma[:, None]
+        f = np.sum(p2 / d**2, axis=-1)
+        fp = np.sum(p2 / d**3, axis=-1)
+        root = np.sqrt(f)
+        psi = 1.0 / np.where(root > 0, root, 1.0) - 1.0 / safe_cap
+        gamma = np.maximum(gamma - psi * f * root / np.where(fp > 0, fp, 1.0), 0.0)
+    l_disk = p / (eig + gamma[:, None])
+    size = np.sqrt(np.sum(l_disk * l_disk, axis=-1))
+    l_disk *= (cap / np.where(size > 0, size, 1.0))[:, None]  # exactly on the circle
+    l_local = np.where(out[:, None], l_disk, inside_l)
+    return np.einsum("nij,nj->ni", q, l_local)
 
 
 def dissipative(lam, dz, z):

@@ -26,7 +26,7 @@ import numpy as np
 from .assembly import Layout, assemble, scaled_velocity
 from .restitution import resolve_impacts
 from .solve import SolverSettings, dissipative, gauss_seidel
-from .warm_start import active_set_start, particle_start
+from .warm_start import active_set_start
 
 
 class ContactSolverWarning(RuntimeWarning):
@@ -108,15 +108,11 @@ class ContactStage:
         free = rows.velocity(u, lay)
         target = np.where(rows.gap > 0, -rows.gap / dt, 0.0)
         short = target - free[..., 0]
-        if self.pairs is None:
-            start = np.zeros(free.shape)
-            particle_start(lay, short, start[..., 0])
-        else:
-            # Contacts that can carry load: the violated ones and those the step's largest
-            # velocity correction could close (resting contacts whose v_n is rounding noise).
-            reach = dt * np.max(np.maximum(short, 0.0), axis=-1, keepdims=True)
-            reachable = (short > 0) | (rows.gap <= reach)
-            start = active_set_start(lay, short, rows.delassus, free[..., 1:], reachable)
+        # Contacts that can carry load: the violated ones and those the step's largest velocity
+        # correction could close (resting contacts whose v_n is rounding noise).
+        reach = dt * np.max(np.maximum(short, 0.0), axis=-1, keepdims=True)
+        reachable = (short > 0) | (rows.gap <= reach)
+        start = active_set_start(lay, short, rows.delassus, free[..., 1:], reachable)
         lam, sweeps, converged = gauss_seidel(
             rows.delassus, free, target, lay.mu, start, settings, extra=impulse
         )

@@ -36,33 +36,55 @@ def particle_start(layout, short, lam_n):
 
 
 def active_set_start(layout, short, delassus, slip, reachable):
-    """Start (N, C, 3) for scenes with body–body contacts; ``short`` (N, C) = target − v_n,
-    ``slip`` (N, C, 2) free tangential velocities, ``reachable`` (N, C) the initial set."""
+    """Start (N, C, 3); ``short`` (N, C) = target − v_n, ``slip`` (N, C, 2) the free
+    tangential velocities, ``reachable`` (N, C) the initial set.
+
+    A contact whose sticking impulse leaves its friction cone is moved to the cone's boundary
+    in that impulse's direction d (λ_t = μ λ_n d: its normal column gains μ d of its tangent
+    columns, its tangent rows leave the equations), and the rest is solved again; a box
+    resting on an incline needs this once (its uphill corners carry less load)."""
     size, c = short.shape
+    mu = layout.mu
     goal = np.concatenate((short[..., None], -slip), -1).reshape(size, -1)
     row_used = np.ones((c, 3), bool)
-    row_used[:, 1:] = (layout.mu > 0)[:, None]
+    row_used[:, 1:] = (mu > 0)[:, None]
     eye = np.eye(3 * c)
     on = reachable
+    bound = np.zeros((size, c), bool)
+    direction = np.zeros((size, c, 2))
     settled = np.zeros(size, bool)
     lam = np.zeros((size, c, 3))
     for _ in range(ROUNDS):
-        live = (on[..., None] & row_used).reshape(size, -1)
-        a = np.where(live[..., :, None] & live[..., None, :], delassus, 0.0)
+        rows3 = on[..., None] & row_used
+        rows3[..., 1:] &= ~bound[..., None]
+        live = rows3.reshape(size, -1)
+        # Columns: a contact at the cone's boundary acts through n + μ d·t.
+        cols = np.array(delassus)
+        mix = (mu * bound)[..., None] * direction  # (N, C, 2)
+        cols[:, :, 0::3] += cols[:, :, 1::3] * mix[:, None, :, 0]
+        cols[:, :, 0::3] += cols[:, :, 2::3] * mix[:, None, :, 1]
+        a = np.where(live[..., :, None] & live[..., None, :], cols, 0.0)
         a += np.where(live, 0.0, 1.0)[..., None] * eye
         lam = (np.linalg.pinv(a) @ np.where(live, goal, 0.0)[..., None]).reshape(size, c, 3)
         lam_n = np.where(on, np.maximum(lam[..., 0], 0.0), 0.0)
-        norm = np.linalg.norm(lam[..., 1:], axis=-1)
-        cap = layout.mu * lam_n
+        lam_t = np.where(bound[..., None], (mu * lam_n)[..., None] * direction, lam[..., 1:])
+        norm = np.linalg.norm(lam_t, axis=-1)
+        cap = mu * lam_n
+        over = ~bound & on & (norm > cap * (1 + 1e-12))
         shrink = np.where(norm > cap, cap / np.where(norm > 0, norm, 1.0), 1.0)
-        lam = np.concatenate((lam_n[..., None], lam[..., 1:] * shrink[..., None]), -1)
+        lam = np.concatenate((lam_n[..., None], lam_t * shrink[..., None]), -1)
         nxt = on & (lam_n > 0)
         pushed = (delassus @ lam.reshape(size, -1, 1)).reshape(size, c, 3)[..., 0]
         nxt |= ~on & (short - pushed > 0)
-        settled = np.all(nxt == on, axis=-1)
+        settled = np.all(nxt == on, axis=-1) & ~np.any(over, axis=-1)
         if settled.all():
             break
+        unit = lam_t / np.where(norm > 0, norm, 1.0)[..., None]
+        grow = ~settled[:, None] & over
+        direction = np.where(grow[..., None], unit, direction)
+        bound = bound | grow
         on = np.where(settled[:, None], on, nxt)
+        bound &= on
     if not settled.all():
         # An unsettled set's equality solution is no LCP solution (it can be 100× the load):
         # those elements start from the ground particle start instead.
