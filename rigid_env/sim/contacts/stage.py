@@ -112,7 +112,7 @@ class ContactStage:
         # correction could close (resting contacts whose v_n is rounding noise).
         reach = dt * np.max(np.maximum(short, 0.0), axis=-1, keepdims=True)
         reachable = (short > 0) | (rows.gap <= reach)
-        start = active_set_start(lay, short, rows.delassus, free[..., 1:], reachable)
+        start = active_set_start(lay, short, rows.delassus, free[..., 1:], reachable, impulse)
         lam, sweeps, converged = gauss_seidel(
             rows.delassus, free, target, lay.mu, start, settings, extra=impulse
         )

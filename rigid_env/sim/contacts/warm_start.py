@@ -35,9 +35,11 @@ def particle_start(layout, short, lam_n):
     lam_n[..., : layout.n_ground] = share.reshape(len(short), -1)
 
 
-def active_set_start(layout, short, delassus, slip, reachable):
+def active_set_start(layout, short, delassus, slip, reachable, extra):
     """Start (N, C, 3); ``short`` (N, C) = target − v_n, ``slip`` (N, C, 2) the free
-    tangential velocities, ``reachable`` (N, C) the initial set.
+    tangential velocities, ``reachable`` (N, C) the initial set, ``extra`` (N, C) the normal
+    impulse of this step's impacts (friction budget: a contact that has one takes part in the
+    tangential equations even when its normal row is off).
 
     A contact whose sticking impulse leaves its friction cone is moved to the cone's boundary
     in that impulse's direction d (λ_t = μ λ_n d: its normal column gains μ d of its tangent
@@ -54,9 +56,10 @@ def active_set_start(layout, short, delassus, slip, reachable):
     direction = np.zeros((size, c, 2))
     settled = np.zeros(size, bool)
     lam = np.zeros((size, c, 3))
+    budget = extra > 0
     for _ in range(ROUNDS):
         rows3 = on[..., None] & row_used
-        rows3[..., 1:] &= ~bound[..., None]
+        rows3[..., 1:] = (on | budget)[..., None] & row_used[:, 1:] & ~bound[..., None]
         live = rows3.reshape(size, -1)
         # Columns: a contact at the cone's boundary acts through n + μ d·t.
         cols = np.array(delassus)
@@ -65,12 +68,17 @@ def active_set_start(layout, short, delassus, slip, reachable):
         cols[:, :, 0::3] += cols[:, :, 2::3] * mix[:, None, :, 1]
         a = np.where(live[..., :, None] & live[..., None, :], cols, 0.0)
         a += np.where(live, 0.0, 1.0)[..., None] * eye
-        lam = (np.linalg.pinv(a) @ np.where(live, goal, 0.0)[..., None]).reshape(size, c, 3)
+        # The budget's part of a boundary contact's friction, μ d extra, is known: move it over.
+        known = np.zeros((size, c, 3))
+        known[..., 1:] = np.where(bound[..., None], (mu * extra)[..., None] * direction, 0.0)
+        rhs = goal - (delassus @ known.reshape(size, -1, 1))[..., 0]
+        lam = (np.linalg.pinv(a) @ np.where(live, rhs, 0.0)[..., None]).reshape(size, c, 3)
         lam_n = np.where(on, np.maximum(lam[..., 0], 0.0), 0.0)
-        lam_t = np.where(bound[..., None], (mu * lam_n)[..., None] * direction, lam[..., 1:])
+        cap = mu * (lam_n + extra)
+        lam_t = np.where(bound[..., None], cap[..., None] * direction, lam[..., 1:])
+        lam_t = np.where((on | budget)[..., None], lam_t, 0.0)
         norm = np.linalg.norm(lam_t, axis=-1)
-        cap = mu * lam_n
-        over = ~bound & on & (norm > cap * (1 + 1e-12))
+        over = ~bound & (on | budget) & (norm > cap * (1 + 1e-12))
         shrink = np.where(norm > cap, cap / np.where(norm > 0, norm, 1.0), 1.0)
         lam = np.concatenate((lam_n[..., None], lam_t * shrink[..., None]), -1)
         nxt = on & (lam_n > 0)
@@ -84,7 +92,7 @@ def active_set_start(layout, short, delassus, slip, reachable):
         direction = np.where(grow[..., None], unit, direction)
         bound = bound | grow
         on = np.where(settled[:, None], on, nxt)
-        bound &= on
+        bound &= on | budget
     if not settled.all():
         # An unsettled set's equality solution is no LCP solution (it can be 100× the load):
         # those elements start from the ground particle start instead.
