@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigid_env.sim import StageTimer
+
 from . import config
 from .rollout import make_vec, run_episodes
 
@@ -59,24 +61,6 @@ class Throughput:
             "sim_share": round(self.sim_seconds / t, 4),
             "learner_us_per_step": round(1e6 * (t - self.env_seconds) / self.env_steps, 1),
         }
-
-
-class TimedScene:
-    """Forwards to a ``Scene`` and adds up the wall time of its ``step`` (measurement only)."""
-
-    def __init__(self, scene):
-        self._scene = scene
-        self.seconds = 0.0
-
-    def step(self, *args, **kwargs):
-        start = time.perf_counter()
-        try:
-            return self._scene.step(*args, **kwargs)
-        finally:
-            self.seconds += time.perf_counter() - start
-
-    def __getattr__(self, name):
-        return getattr(self._scene, name)
 
 
 @dataclass
@@ -195,8 +179,7 @@ def train(
 
     venv = make_vec(env_id, n_envs, **env_kwargs)
     task = venv.unwrapped.task
-    timed = TimedScene(task.scene)
-    task.scene = timed
+    timed = task.scene.timer = StageTimer()  # the simulator's share of the wall time
     adapter = GymVectorToSB3(venv)
     env = VecMonitor(adapter, filename=str(out / "monitor.csv"), info_keywords=("is_success",))
     env.seed(seed)
@@ -231,7 +214,7 @@ def train(
         cpu_seconds=cpu_seconds,
         eval_seconds=callback.seconds,
         env_seconds=adapter.env_seconds,
-        sim_seconds=timed.seconds,
+        sim_seconds=timed.step_seconds,
     ).as_dict()
     result = RunResult(out, env_id, algo, callback.rows, throughput, analytic)
     _write_records(result, loop, kwargs, timesteps, n_envs, seed, eval_seed, env_kwargs)

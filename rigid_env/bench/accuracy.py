@@ -30,15 +30,7 @@ from rigid_env.sim.rotation import quat_angle
 
 from . import bounce, peers, problems, report
 
-THEORETICAL_ORDER = {
-    "euler": 1,
-    "euler_quat": 1,
-    "rk4": 4,
-    "splitting": 2,
-    "splitting4": 4,
-    "implicit_gyro": 1,
-    "implicit": 1,
-}
+THEORETICAL_ORDER = {name: record.order for name, record in sim.INTEGRATOR_RECORDS.items()}
 TARGETS = (1e-3, 1e-6, 1e-9)
 ASYMPTOTIC_MAX = 1e-2  # above this the leading error term does not yet dominate
 # Rounding accumulates like the step count: below ~100 ε per step an error is rounding, not

@@ -227,6 +227,4 @@ def window_start(drop: Drop, dt: float, steps: int) -> tuple[float, float]:
 
 
 def integrators() -> tuple[str, ...]:
-    from rigid_env.sim.contacts import COMPATIBLE_INTEGRATORS
-
-    return tuple(i for i in COMPATIBLE_INTEGRATORS if i in sim.INTEGRATORS)
+    return sim.CONTACT_CAPABLE

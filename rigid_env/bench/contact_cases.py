@@ -3,7 +3,7 @@
 Each factory returns ``(scene, state, depth)`` where ``depth(state)`` is the deepest
 penetration in the state (m, ≥ 0 when overlapping, per batch element) and, for the ground
 cases, ``below(state)`` tells whether a body ended under the ground (tunnelled). Scenes need a
-contact-capable integrator (``rigid_env.sim.contacts.COMPATIBLE_INTEGRATORS``).
+contact-capable integrator (``rigid_env.sim.CONTACT_CAPABLE``).
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ BODY_MATERIAL = sim.Material(restitution=0.5, friction=0.0)
 
 
 def compatible() -> tuple[str, ...]:
-    from rigid_env.sim.contacts import COMPATIBLE_INTEGRATORS
+    from rigid_env.sim import CONTACT_CAPABLE
 
-    return COMPATIBLE_INTEGRATORS
+    return CONTACT_CAPABLE
 
 
 def lowest_point(box: sim.Body, state: sim.State) -> np.ndarray:

@@ -5,8 +5,8 @@ r"""``RigidEnv/BoxLanding-v0``: land a thrown box on a chosen face and bring it 
 A box (by default a uniform 0.2 m × 0.3 m × 0.4 m box of 1 kg, half extents 0.1, 0.15, 0.2 m,
 principal moments 0.0208, 0.0167, 0.0108 kg m²) is thrown at the ground from a random height with
 a random tilt, spin and velocity. Gravity (9.81 m/s² down) and the ground plane z = 0 with
-Newton restitution and Coulomb friction act on it (the simulator's contact scene:
-``scene.stages == ("gravity", "integrate", "collide_ground", "solve_contacts")``). The box
+Newton restitution and Coulomb friction act on it (the simulator's contact scene: gravity, the
+velocity update, ground collision and contact solve, the position update, restitution). The box
 carries three reaction wheels: the agent commands saturated torques about the body axes to turn
 the *target face* down before touchdown, land on it with few bounces and come to rest on it,
 upright and without tumbling over. The default target, ``"-z"``, is the face whose outward
@@ -113,7 +113,7 @@ m g z, J) and ``is_success`` (``bool``).
 | ``half_extents``         | ``(0.1, 0.15, 0.2)`` | of the default box, m (only without ``body``)          |
 | ``mass``                 | ``1.0``          | of the default box, kg (only without ``body``)            |
 | ``inertia``              | ``None``         | override: 3 principal moments or a 3×3 tensor, kg m²      |
-| ``integrator``           | ``"implicit_gyro"`` | one of ``rigid_env.sim.contacts.COMPATIBLE_INTEGRATORS`` |
+| ``integrator``           | ``"implicit_gyro"`` | one of ``rigid_env.sim.CONTACT_CAPABLE``                |
 | ``dt``                   | ``1/240``        | physics time step, s                                      |
 | ``frame_skip``           | ``8``            | physics steps per action (1/30 s)                         |
 | ``restitution``          | ``0.3``          | of the ground, in [0, 1]                                  |
@@ -164,7 +164,6 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import sim
-from ..sim.contacts import COMPATIBLE_INTEGRATORS
 from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
 from .bodies import make_body
@@ -257,7 +256,7 @@ class BoxLandingTask(BatchedTask):
             default_mass=1.0,
             shapes=(sim.Box,),
         )
-        self.integrator = choice(integrator, "integrator", COMPATIBLE_INTEGRATORS)
+        self.integrator = choice(integrator, "integrator", sim.CONTACT_CAPABLE)
         self.dt = positive_scalar(dt, "dt")
         self.frame_skip = positive_int(frame_skip, "frame_skip")
         self.ground = sim.Ground(restitution=restitution, friction=friction)

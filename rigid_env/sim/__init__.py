@@ -4,10 +4,15 @@ Conventions (course notes): ``p = x + R r``; quaternions (x, y, z, w) with w = c
 angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
 """
 
-from . import rotation
+from . import pipeline, rotation
 from .body import Body
+from .contacts import ContactReport, ContactSolverWarning, SolverSettings
+from .integrators import CONTACT_CAPABLE
+from .integrators import RECORDS as INTEGRATOR_RECORDS
 from .model import Ground, Material, Model, Spring
+from .pipeline import Stage, StageTimer, StepContext
 from .scene import (
+    BACKENDS,
     CONTACT_INTEGRATOR,
     DEFAULT_INTEGRATOR,
     INTEGRATORS,
@@ -18,19 +23,29 @@ from .shapes import Box, Polyhedron, Sphere
 from .state import State
 
 __all__ = [
+    "BACKENDS",
     "Body",
     "Box",
+    "CONTACT_CAPABLE",
     "CONTACT_INTEGRATOR",
+    "ContactReport",
+    "ContactSolverWarning",
     "DEFAULT_INTEGRATOR",
     "DivergenceError",
     "Ground",
     "INTEGRATORS",
+    "INTEGRATOR_RECORDS",
     "Material",
     "Model",
     "Polyhedron",
     "Scene",
+    "SolverSettings",
     "Sphere",
     "Spring",
+    "Stage",
+    "StageTimer",
     "State",
+    "StepContext",
+    "pipeline",
     "rotation",
 ]

@@ -1,113 +1,134 @@
-"""Force terms. A scene gets only the terms it was given; each maps a state to (force, torque).
+"""Force stages. A scene gets only the terms it was given; each maps a state to (force, torque).
 
-Every term is ``term(x, q, v, w) -> (F, T)`` on world-frame arrays ``(*batch, n, 3)``, with
-``None`` for a component it does not produce, so integrators can evaluate forces at their own
-intermediate states (RK4 stages, splitting half steps).
+Every term is a stage object (``rigid_env.sim.pipeline.Stage``) with
+
+* ``wrench(x, q, v, w) -> (F, T)`` on world-frame arrays ``(*batch, n, 3)``, with ``None`` for
+  a component it does not produce, so integrators can evaluate it at their own intermediate
+  states (RK4 stages, splitting half steps);
+* ``__call__(ctx)``: adds its wrench at the context's state to the step's accumulators;
+* ``velocity_dependent``: whether the wrench depends on (v, ω);
+* ``damping_matrix(x, q)`` for velocity-dependent terms: the per-body 6×6 matrix C with
+  (F, T) = (F, T)|₍ᵥ,ω₎₌₀ − C (v, ω) (every damping term here is linear in the velocities),
+  which the symmetric splitting kicks solve with.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from .model import Model
-from .rotation import cross, quat_rotate, quat_to_matrix
-
-Vec = np.ndarray | None
-Term = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[Vec, Vec]]
+from .rotation import cross, quat_rotate, quat_to_matrix, skew
 
 
-def gravity(model: Model) -> Term:
-    weight = model.mass[:, None] * model.gravity  # (n, 3), broadcast over the batch
+class Gravity:
+    name = "gravity"
+    velocity_dependent = False
 
-    def term(x, q, v, w):
-        return weight, None
+    def __init__(self, model: Model):
+        self.weight = model.mass[:, None] * model.gravity  # (n, 3), broadcast over the batch
 
-    return term
+    def wrench(self, x, q, v, w):
+        return self.weight, None
+
+    def __call__(self, ctx) -> None:
+        ctx.add_wrench(self.weight, None)
 
 
-def damping(model: Model) -> Term:
+class Damping:
     """Linear and angular damping as decay rates (1/s): ṗ = −γ_v p, L̇ = −γ_ω L."""
-    gv, gw = model.linear_damping, model.angular_damping
-    m = model.mass[:, None]
 
-    def term(x, q, v, w):
-        force = -gv * m * v if gv else None
-        torque = -gw * model.apply_inertia(quat_to_matrix(q), w) if gw else None
+    name = "damping"
+    velocity_dependent = True
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.gv, self.gw = model.linear_damping, model.angular_damping
+        self.m = model.mass[:, None]
+
+    def wrench(self, x, q, v, w):
+        force = -self.gv * self.m * v if self.gv else None
+        torque = -self.gw * self.model.apply_inertia(quat_to_matrix(q), w) if self.gw else None
         return force, torque
 
-    return term
+    def __call__(self, ctx) -> None:
+        ctx.add_wrench(*self.wrench(ctx.x, ctx.q, ctx.v, ctx.w))
+
+    def damping_matrix(self, x, q):
+        """diag(γ_v m I, γ_ω R M0 Rᵀ) per body, (*batch, n, 6, 6)."""
+        rot = quat_to_matrix(q)
+        out = np.zeros((*q.shape[:-1], 6, 6))
+        out[..., :3, :3] = self.gv * self.m[..., None] * np.eye(3)
+        out[..., 3:, 3:] = self.gw * (rot @ self.model.inertia @ np.swapaxes(rot, -1, -2))
+        return out
 
 
-def springs(model: Model) -> Term:
+class Springs:
     """Sum of the springs' forces and torques ``(R r) × F`` per body (notes: T = (R r) × F)."""
-    s = model.springs
-    body = np.array([sp.body for sp in s])
-    anchor = np.stack([sp.anchor for sp in s])  # (s, 3)
-    attach = np.stack([sp.attach for sp in s])
-    k = np.array([sp.stiffness for sp in s])[:, None]
-    c = np.array([sp.damping for sp in s])[:, None]
-    rest = np.array([sp.rest_length for sp in s])[:, None]
-    has_rest = rest > 0
-    # Spring → body incidence: sums the springs on each body without a Python loop or np.add.at.
-    incidence = np.zeros((len(s), model.n_bodies))
-    incidence[np.arange(len(s)), body] = 1.0
 
-    def term(x, q, v, w):
-        arm = quat_rotate(q[..., body, :], attach)  # R r, (*batch, s, 3)
-        d = x[..., body, :] + arm - anchor
-        pdot = v[..., body, :] + cross(w[..., body, :], arm)
+    name = "springs"
+
+    def __init__(self, model: Model):
+        s = model.springs
+        self.n_bodies = model.n_bodies
+        self.body = np.array([sp.body for sp in s])
+        self.anchor = np.stack([sp.anchor for sp in s])  # (s, 3)
+        self.attach = np.stack([sp.attach for sp in s])
+        self.k = np.array([sp.stiffness for sp in s])[:, None]
+        self.c = np.array([sp.damping for sp in s])[:, None]
+        self.rest = np.array([sp.rest_length for sp in s])[:, None]
+        self.has_rest = self.rest > 0
+        self.velocity_dependent = bool(np.any(self.c))
+        # Spring → body incidence: sums the springs on each body without a loop or np.add.at.
+        self.incidence = np.zeros((len(s), model.n_bodies))
+        self.incidence[np.arange(len(s)), self.body] = 1.0
+
+    def _geometry(self, x, q):
+        arm = quat_rotate(q[..., self.body, :], self.attach)  # R r, (*batch, s, 3)
+        d = x[..., self.body, :] + arm - self.anchor
         length = np.linalg.norm(d, axis=-1, keepdims=True)
         unit = d / np.where(length > 0, length, 1.0)
-        stretched = np.where(has_rest, k * (length - rest) * unit, k * d)
+        return arm, d, length, unit
+
+    def wrench(self, x, q, v, w):
+        arm, d, length, unit = self._geometry(x, q)
+        pdot = v[..., self.body, :] + cross(w[..., self.body, :], arm)
+        k, c, has_rest = self.k, self.c, self.has_rest
+        stretched = np.where(has_rest, k * (length - self.rest) * unit, k * d)
         damped = np.where(
             has_rest, c * np.sum(pdot * unit, axis=-1, keepdims=True) * unit, c * pdot
         )
         f = -(stretched + damped)
         t = cross(arm, f)
         return (
-            np.einsum("...si,sn->...ni", f, incidence),
-            np.einsum("...si,sn->...ni", t, incidence),
+            np.einsum("...si,sn->...ni", f, self.incidence),
+            np.einsum("...si,sn->...ni", t, self.incidence),
         )
 
-    return term
+    def __call__(self, ctx) -> None:
+        ctx.add_wrench(*self.wrench(ctx.x, ctx.q, ctx.v, ctx.w))
+
+    def damping_matrix(self, x, q):
+        """Σ Jᵀ C J over each body's springs, J = [I, −(R r)*] (ṗ = J (v, ω)), C = c d̂ d̂ᵀ (or
+        c I without rest length), (*batch, n, 6, 6)."""
+        arm, _, _, unit = self._geometry(x, q)
+        along = unit[..., :, None] * unit[..., None, :]
+        damp = self.c[..., None] * np.where(self.has_rest[..., None], along, np.eye(3))
+        eye = np.broadcast_to(np.eye(3), arm.shape + (3,))
+        jac = np.concatenate((eye, -skew(arm)), axis=-1)  # (*batch, s, 3, 6)
+        return np.einsum("...sai,...sab,...sbj,sn->...nij", jac, damp, jac, self.incidence)
 
 
-def build_terms(model: Model) -> tuple[tuple[str, Term], ...]:
+def build(model: Model) -> tuple:
     """The force stages a model needs, in order; a free body in space gets none."""
-    terms = []
+    stages = []
     if model.gravity is not None and np.any(model.gravity):
-        terms.append(("gravity", gravity(model)))
+        stages.append(Gravity(model))
     if model.linear_damping or model.angular_damping:
-        terms.append(("damping", damping(model)))
+        stages.append(Damping(model))
     if model.springs:
-        terms.append(("springs", springs(model)))
-    return tuple(terms)
+        stages.append(Springs(model))
+    return tuple(stages)
 
 
-def combine(terms: tuple[tuple[str, Term], ...], velocity_dependent: bool = True):
-    """One function ``(x, q, v, w, F_applied, T_applied) -> (F, T)`` summing the terms.
-
-    ``wrench.velocity_dependent`` tells integrators whether the forces depend on v or ω (damping),
-    which a symmetric splitting must treat with a corrected final half kick to stay 2nd order.
-    """
-    fns = tuple(fn for _, fn in terms)
-
-    def wrench(x, q, v, w, force, torque):
-        for fn in fns:
-            f, t = fn(x, q, v, w)
-            if f is not None:
-                force = f if force is None else force + f
-            if t is not None:
-                torque = t if torque is None else torque + t
-        return force, torque
-
-    wrench.velocity_dependent = velocity_dependent
-    return wrench
-
-
-def is_velocity_dependent(model: Model) -> bool:
-    return bool(
-        model.linear_damping or model.angular_damping or any(s.damping for s in model.springs)
-    )
+def is_velocity_dependent(stages) -> bool:
+    return any(s.velocity_dependent for s in stages)

@@ -1,12 +1,17 @@
 """A scene: a static model plus the step pipeline composed from only the terms it uses.
 
-``Scene.stages`` names the pipeline: force stages (gravity, damping, springs) evaluated inside
-the integrator, then ``integrate``, then the contact stages when a ground is given. A body
-tumbling in space has ``stages == ("integrate",)``.
+``Scene.pipeline`` is the ordered tuple of stage objects a step runs (``sim.pipeline``) and
+``Scene.stages`` their names: the force stages it was given (gravity, damping, springs), then
+the integrator's parts, with the contact stages between a semi-implicit integrator's velocity
+and position updates. A body tumbling in space has ``stages == ("integrate",)``; a box landing
+on the ground ``("gravity", "integrate_velocity", "collide_ground", "solve_contacts",
+"integrate_position", "restitute")``.
 """
 
 from __future__ import annotations
 
+import os
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -14,17 +19,26 @@ import numpy as np
 from . import contacts as contact_stages
 from . import forces
 from .body import Body
-from .integrators import REGISTRY
+from .contacts import SolverSettings
+from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
+from .pipeline import StageTimer, StepContext, run
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import State
 from .validation import positive_scalar
 
-INTEGRATORS: tuple[str, ...] = tuple(REGISTRY)
+INTEGRATORS: tuple[str, ...] = tuple(RECORDS)
 DEFAULT_INTEGRATOR = "splitting"
 # Scenes with contacts default to semi-implicit Euler with the implicit gyroscopic term: contact
 # impulses act between its velocity and position updates, and it stays stable for tumbling boxes.
 CONTACT_INTEGRATOR = "implicit_gyro"
+# Step implementations; ``backend=None`` reads RIGID_ENV_BACKEND, else "numpy".
+BACKENDS: tuple[str, ...] = ("numpy",)
+BACKEND_VARIABLE = "RIGID_ENV_BACKEND"
+# A state's quaternions must have |q| within this of 1 (a step renormalises its copy); a
+# quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
+ORIENTATION_TOLERANCE = 1e-6
+STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")
 
 
 class DivergenceError(FloatingPointError):
@@ -40,13 +54,24 @@ class Scene:
     dt : time step in seconds.
     integrator : one of :data:`INTEGRATORS`; ``None`` picks :data:`DEFAULT_INTEGRATOR`, or
         :data:`CONTACT_INTEGRATOR` when the scene has contacts. Contacts need a semi-implicit
-        integrator (``contacts.COMPATIBLE_INTEGRATORS``); others raise ``ValueError``.
+        integrator (``integrators.CONTACT_CAPABLE``); others raise ``ValueError``.
     gravity : world acceleration vector (m/s²), e.g. ``(0, 0, -9.81)``; ``None`` for space.
     ground : a :class:`Ground` (plane z = 0) or ``None``.
     springs : a sequence of :class:`Spring`.
     linear_damping, angular_damping : decay rates of linear and angular momentum, 1/s.
     contacts : a :class:`Material` for body–body contacts, or ``None`` (bodies pass through
         each other).
+    backend : one of :data:`BACKENDS`; ``None`` reads the environment variable
+        ``RIGID_ENV_BACKEND`` (default ``"numpy"``, the reference implementation).
+    timer : a :class:`~rigid_env.sim.pipeline.StageTimer` that accumulates the wall time of
+        each stage (also settable later as ``scene.timer``); ``None`` times nothing.
+    contact_solver : a :class:`~rigid_env.sim.contacts.SolverSettings` (iteration cap,
+        tolerance, impact cap of the contact solve); ``None`` takes its defaults.
+
+    After each step, ``scene.report`` holds that step's report (a dict). With contacts,
+    ``scene.report["contacts"]`` is a :class:`~rigid_env.sim.contacts.ContactReport`: its
+    ``capped`` counts the batch elements whose solve stopped at a cap instead of converging
+    (also raised as a ``ContactSolverWarning``).
     """
 
     def __init__(
@@ -60,10 +85,16 @@ class Scene:
         linear_damping: float = 0.0,
         angular_damping: float = 0.0,
         contacts: Material | None = None,
+        backend: str | None = None,
+        timer: StageTimer | None = None,
+        contact_solver: SolverSettings | None = None,
     ):
         if isinstance(bodies, Body):
             bodies = (bodies,)
-        bodies = tuple(bodies)
+        try:
+            bodies = tuple(bodies)
+        except TypeError:
+            raise ValueError("bodies must be a Body or a non-empty sequence of Body") from None
         if not bodies or not all(isinstance(b, Body) for b in bodies):
             raise ValueError("bodies must be a Body or a non-empty sequence of Body")
         self.dt = positive_scalar(dt, "dt")
@@ -71,38 +102,49 @@ class Scene:
             raise ValueError(f"ground must be a Ground or None, got {ground!r}")
         if contacts is not None and not isinstance(contacts, Material):
             raise ValueError(f"contacts must be a Material or None, got {contacts!r}")
-        springs = tuple(springs)
+        if timer is not None and not isinstance(timer, StageTimer):
+            raise ValueError(f"timer must be a StageTimer or None, got {timer!r}")
+        try:
+            springs = tuple(springs)
+        except TypeError:
+            raise ValueError(f"springs must be a sequence of Spring, got {springs!r}") from None
         for sp in springs:
             if not isinstance(sp, Spring):
                 raise ValueError(f"springs must contain Spring objects, got {sp!r}")
             if not 0 <= sp.body < len(bodies):
                 raise ValueError(f"springs: body index {sp.body} out of range for {len(bodies)}")
+        self.backend = _backend(backend)
         self.model = Model(
             bodies, gravity, ground, springs, linear_damping, angular_damping, contacts
         )
-        contact_names, contact_stage = contact_stages.build(self.model, self.dt)
+        between, after = contact_stages.build(self.model, self.dt, contact_solver)
         if integrator is None:
-            integrator = CONTACT_INTEGRATOR if contact_stage else DEFAULT_INTEGRATOR
-        if integrator not in REGISTRY:
+            integrator = CONTACT_INTEGRATOR if between else DEFAULT_INTEGRATOR
+        if not isinstance(integrator, str) or integrator not in RECORDS:
             raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
-        if contact_stage and integrator not in contact_stages.COMPATIBLE_INTEGRATORS:
+        record = RECORDS[integrator]
+        if between and not record.contact_capable:
             raise ValueError(
                 f"integrator {integrator!r} cannot be combined with contacts: contact impulses "
                 f"act between the velocity and position updates of a semi-implicit step; use "
-                f"one of {contact_stages.COMPATIBLE_INTEGRATORS}"
+                f"one of {CONTACT_CAPABLE}"
             )
         self.integrator = integrator
-        terms = forces.build_terms(self.model)
-        self._forces = (
-            forces.combine(terms, forces.is_velocity_dependent(self.model)) if terms else None
-        )
-        self._integrate = REGISTRY[integrator]
-        self._post_stages: tuple = ((contact_names, contact_stage),) if contact_stage else ()
-        self.stages: tuple[str, ...] = (
-            *(name for name, _ in terms),
-            "integrate",
-            *contact_names,
-        )
+        self.forces = forces.build(self.model)
+        parts = record.stages()
+        if record.semi_implicit:
+            velocity, position = parts
+            steps = (velocity, *between, position, *after)
+        else:
+            steps = parts
+        self.pipeline: tuple = (*self.forces, *steps)
+        self.timer = timer
+        self.report: dict = {}
+
+    @property
+    def stages(self) -> tuple[str, ...]:
+        """The names of :attr:`pipeline`'s stages, in order."""
+        return tuple(stage.name for stage in self.pipeline)
 
     @property
     def n_bodies(self) -> int:
@@ -156,10 +198,14 @@ class Scene:
         out = {}
         for name, arr in arrays.items():
             out[name] = np.array(np.broadcast_to(arr, shape[:-1] + arr.shape[-1:]), dtype=float)
-        norm = np.linalg.norm(out["orientation"], axis=-1, keepdims=True)
-        if np.any(norm < 1e-12):
+        # Scale by the largest component first: |q|² of a huge (finite) q would overflow to
+        # infinity and normalise to zeros; scaled, every component is in [−1, 1].
+        q = out["orientation"]
+        peak = np.max(np.abs(q), axis=-1, keepdims=True)
+        if not np.all(peak > 0):
             raise ValueError("orientation must be non-zero quaternions (x, y, z, w)")
-        out["orientation"] /= norm
+        q /= peak
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
         return State(**out)
 
     # --- stepping -------------------------------------------------------------------------------
@@ -168,35 +214,72 @@ class Scene:
         """Advance every batch element by one ``dt``; torque and force are world-frame.
 
         ``torque``/``force`` broadcast to ``(*batch_shape, n_bodies, 3)`` and act at the centres
-        of mass for the whole step. The state passed in is never modified.
+        of mass for the whole step. The state passed in is never modified, and the state
+        returned shares no memory with it (float64 whatever the input's dtype).
         """
-        shape = self._check_state(state)
+        timer = self.timer
+        clock = time.perf_counter
+        start = clock() if timer is not None else 0.0
+        arrays = self._arrays(state)
+        shape = arrays[0].shape
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
-        new = self._integrate(self.model, state, self.dt, self._forces, force, torque)
-        for _, stage in self._post_stages:
-            new = stage(state, new)
+        ctx = StepContext(self.model, self.dt, State(*arrays), force, torque, self.forces)
+        # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is renormalised.
+        ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
+        if timer is None:
+            run(self.pipeline, ctx)
+        else:
+            mid = clock()
+            timer.add("validate", mid - start)
+            run(self.pipeline, ctx, timer)
+            mid = clock()
+        new = ctx.state()
         if not _all_finite(new):
-            self._diagnose(state)
+            self._diagnose(arrays)
+        self.report = ctx.report
+        if timer is not None:
+            end = clock()
+            timer.add("check", end - mid)
+            timer.step_seconds += end - start
+            timer.steps += 1
         return new
 
-    def _check_state(self, state) -> tuple[int, ...]:
+    def _arrays(self, state) -> tuple[np.ndarray, ...]:
+        """The state's arrays as float64 (no copy when they already are), checked for type,
+        shape and unit quaternions; every failure is a ``ValueError`` naming the field."""
         if not isinstance(state, State):
             raise ValueError(f"state must be a State, got {type(state).__name__}")
-        shape = state.position.shape
+        arrays = []
+        for name, value in zip(STATE_FIELDS, state.arrays(), strict=True):
+            try:
+                arrays.append(np.asarray(value, dtype=np.float64))
+            except (TypeError, ValueError):
+                raise ValueError(f"state.{name} must be a numeric array") from None
+        x, q, v, w = arrays
+        shape = x.shape
         if len(shape) < 2 or shape[-2:] != (self.n_bodies, 3):
-            raise ValueError(f"state.position must have shape (*batch, {self.n_bodies}, 3)")
-        if (
-            state.linear_velocity.shape != shape
-            or state.angular_velocity.shape != shape
-            or state.orientation.shape != shape[:-1] + (4,)
-        ):
-            raise ValueError("state arrays disagree in shape")
-        return shape
+            raise ValueError(
+                f"state.position must have shape (*batch, {self.n_bodies}, 3) for this scene's "
+                f"{self.n_bodies} bodies, got {shape}"
+            )
+        if v.shape != shape or w.shape != shape or q.shape != shape[:-1] + (4,):
+            raise ValueError(
+                "state arrays disagree in shape: "
+                + ", ".join(f"{k} {a.shape}" for k, a in zip(STATE_FIELDS, arrays, strict=True))
+            )
+        # |q|² − 1 ≈ 2 (|q| − 1); a zero, non-finite or overflowing |q|² fails the comparison.
+        deviation = np.abs(_norm2(q) - 1.0)
+        if not np.all(deviation <= 2 * ORIENTATION_TOLERANCE):
+            raise ValueError(
+                f"state.orientation must hold finite unit quaternions (x, y, z, w) with |q| "
+                f"within {ORIENTATION_TOLERANCE:g} of 1; Scene.initial_state normalises any "
+                f"non-zero quaternion"
+            )
+        return tuple(arrays)
 
-    def _diagnose(self, state):
-        names = ("position", "orientation", "linear_velocity", "angular_velocity")
-        for name, arr in zip(names, state.arrays(), strict=True):
+    def _diagnose(self, arrays):
+        for name, arr in zip(STATE_FIELDS, arrays, strict=True):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"state.{name} contains NaN or infinity")
         raise DivergenceError(
@@ -205,33 +288,39 @@ class Scene:
         )
 
     # --- what users read off a state ------------------------------------------------------------
+    # Each checks the state as ``step`` does (a state of another scene is a ValueError).
 
     def linear_momentum(self, state: State) -> np.ndarray:
         """Total m v, ``(*batch, 3)``."""
-        return np.sum(self.model.mass[:, None] * state.linear_velocity, axis=-2)
+        _, _, v, _ = self._arrays(state)
+        return np.sum(self.model.mass[:, None] * v, axis=-2)
 
     def angular_momentum(self, state: State, about=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Total world angular momentum about a world point: Σ (x − o) × m v + M ω."""
-        spin = self.model.apply_inertia(state.rotation, state.angular_velocity)
-        orbit = cross(state.position - np.asarray(about, float), state.linear_velocity)
+        x, q, v, w = self._arrays(state)
+        about = _finite(about, "about")
+        if about.shape != (3,):
+            raise ValueError(f"about must be a 3-vector, got shape {about.shape}")
+        spin = self.model.apply_inertia(quat_to_matrix(q), w)
+        orbit = cross(x - about, v)
         return np.sum(spin + self.model.mass[:, None] * orbit, axis=-2)
 
     def kinetic_energy(self, state: State) -> np.ndarray:
         """Σ ½ m v² + ½ ωᵀ M ω, ``(*batch,)``."""
+        _, q, v, w = self._arrays(state)
         m = self.model.mass
-        spin = self.model.apply_inertia(state.rotation, state.angular_velocity)
-        lin = 0.5 * m * np.sum(state.linear_velocity**2, axis=-1)
-        return np.sum(lin + 0.5 * np.sum(state.angular_velocity * spin, axis=-1), axis=-1)
+        spin = self.model.apply_inertia(quat_to_matrix(q), w)
+        lin = 0.5 * m * np.sum(v**2, axis=-1)
+        return np.sum(lin + 0.5 * np.sum(w * spin, axis=-1), axis=-1)
 
     def potential_energy(self, state: State) -> np.ndarray:
         """Gravity −m g·x plus spring energy ½ k (|d| − rest)², ``(*batch,)``."""
-        energy = np.zeros(state.batch_shape)
+        x, q, _, _ = self._arrays(state)
+        energy = np.zeros(x.shape[:-2])
         if self.model.gravity is not None:
-            energy = energy - np.sum(self.model.mass * (state.position @ self.model.gravity), -1)
+            energy = energy - np.sum(self.model.mass * (x @ self.model.gravity), -1)
         for sp in self.model.springs:
-            p = state.position[..., sp.body, :] + quat_rotate(
-                state.orientation[..., sp.body, :], sp.attach
-            )
+            p = x[..., sp.body, :] + quat_rotate(q[..., sp.body, :], sp.attach)
             stretch = np.linalg.norm(p - sp.anchor, axis=-1) - sp.rest_length
             energy = energy + 0.5 * sp.stiffness * stretch**2
         return energy
@@ -239,8 +328,20 @@ class Scene:
     def energy(self, state: State) -> np.ndarray:
         return self.kinetic_energy(state) + self.potential_energy(state)
 
-    def rotation(self, state: State) -> np.ndarray:
-        return quat_to_matrix(state.orientation)
+
+def _norm2(q: np.ndarray) -> np.ndarray:
+    """|q|² summed in a fixed order: a SIMD reduction's rounding can depend on the arrays'
+    memory alignment, which would make a step's result depend on where its input lives."""
+    return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
+
+
+def _backend(value: str | None) -> str:
+    source = "backend"
+    if value is None:
+        value, source = os.environ.get(BACKEND_VARIABLE) or "numpy", BACKEND_VARIABLE
+    if value not in BACKENDS:
+        raise ValueError(f"{source} must be one of {BACKENDS}, got {value!r}")
+    return value
 
 
 def _finite(value, name: str) -> np.ndarray:
@@ -274,8 +375,5 @@ def _load(value, name: str, shape: tuple[int, ...]):
 
 
 def _all_finite(state: State) -> bool:
-    # One reduction per array: a NaN or infinity anywhere makes the sum non-finite.
-    total = 0.0
-    for arr in state.arrays():
-        total += arr.sum()
-    return bool(np.isfinite(total))
+    # Elementwise, not a sum: a sum of large finite values can overflow to infinity.
+    return all(np.isfinite(arr).all() for arr in state.arrays())

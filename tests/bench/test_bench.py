@@ -266,10 +266,15 @@ def test_speed_covers_contact_scenes_and_breakdowns_add_up(runs):
     for name, info in doc["stage_breakdown"].items():
         parts = [r["s"] for r in info["rows"] if not r["stage"].startswith("step total")]
         total = info["rows"][-1]["s"]
-        # The parts are timed inside the total's own steps: they sum to it exactly (rounding).
-        assert sum(parts) == pytest.approx(total, rel=1e-9), name
-        assert all(p >= 0 for p in parts), (name, info["rows"])
-    assert [r["stage"] for r in doc["stage_breakdown"]["two_body_impact"]["rows"]][1:3] == [
+        # Every part is timed by its own clock reads, disjoint intervals inside the step whose
+        # total is read separately: the sum can only fall short of it (by the bookkeeping
+        # between the parts), never exceed it; a part counted twice or timed outside the step
+        # would. Each stage of the scene has its row.
+        assert 0 < sum(parts) <= total, (name, info["rows"])
+        assert all(p > 0 for p in parts), (name, info["rows"])
+        stages = [r["stage"] for r in info["rows"][1:-2]]
+        assert stages == list(info["stages"]), name
+    assert doc["stage_breakdown"]["two_body_impact"]["stages"][1:3] == [
         "collide_pairs",
         "solve_contacts",
     ]

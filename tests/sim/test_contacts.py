@@ -28,11 +28,28 @@ def test_stages_and_integrator_choice():
     box = sim.Body.box((0.1, 0.15, 0.2), 1.0)
     assert sim.Scene(box, 0.01).stages == ("integrate",)
     scene = sim.Scene(box, 0.01, gravity=GRAVITY, ground=sim.Ground())
-    assert scene.stages == ("gravity", "integrate", "collide_ground", "solve_contacts")
+    assert scene.stages == (
+        "gravity",
+        "integrate_velocity",
+        "collide_ground",
+        "assemble_contacts",
+        "restitute",
+        "solve_contacts",
+        "integrate_position",
+        "separate_contacts",
+    )
     assert scene.integrator == sim.CONTACT_INTEGRATOR
     balls = [sim.Body.sphere(0.1, 1.0), sim.Body.sphere(0.1, 1.0)]
     pairs = sim.Scene(balls, 0.01, contacts=sim.Material())
-    assert pairs.stages == ("integrate", "collide_pairs", "solve_contacts")
+    assert pairs.stages == (
+        "integrate_velocity",
+        "collide_pairs",
+        "assemble_contacts",
+        "restitute",
+        "solve_contacts",
+        "integrate_position",
+        "separate_contacts",
+    )
     for name in ("splitting", "splitting4", "rk4"):
         with pytest.raises(ValueError, match="integrator"):
             sim.Scene(box, 0.01, integrator=name, ground=sim.Ground())

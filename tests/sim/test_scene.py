@@ -17,25 +17,51 @@ def test_free_body_runs_only_the_integrator():
     assert sim.Scene(box(), 0.01).stages == ("integrate",)
     # A zero gravity vector is no gravity: nothing to compute.
     assert sim.Scene(box(), 0.01, gravity=(0, 0, 0)).stages == ("integrate",)
+    # A semi-implicit integrator contributes its two parts, nothing else.
+    scene = sim.Scene(box(), 0.01, integrator="implicit_gyro")
+    assert scene.stages == ("integrate_velocity", "integrate_position")
 
 
 def test_stages_follow_the_terms_given():
     spring = sim.Spring(0, anchor=(0, 0, 1), stiffness=10.0)
     scene = sim.Scene(box(), 0.01, gravity=(0, 0, -9.81), springs=[spring], linear_damping=0.1)
     assert scene.stages == ("gravity", "damping", "springs", "integrate")
+    assert scene.stages == tuple(stage.name for stage in scene.pipeline)
+    assert all(isinstance(stage, sim.pipeline.Stage) for stage in scene.pipeline)
 
 
-def test_free_body_pays_nothing_for_forces(monkeypatch):
-    """The free-body step never calls a force term (a tripwire on every term builder)."""
-    from rigid_env.sim import forces
+def test_contacts_sit_between_the_velocity_and_position_updates():
+    scene = sim.Scene(box(), 0.01, gravity=(0, 0, -9.81), ground=sim.Ground())
+    assert scene.stages == (
+        "gravity",
+        "integrate_velocity",
+        "collide_ground",
+        "assemble_contacts",
+        "restitute",
+        "solve_contacts",
+        "integrate_position",
+        "separate_contacts",
+    )
+
+
+def test_free_body_pays_nothing_for_forces_or_contacts(monkeypatch):
+    """The free-body step builds and calls no force term and no contact code (tripwires)."""
+    from rigid_env.sim import contacts, forces
 
     def tripwire(*args, **kwargs):
-        raise AssertionError("a force term was built for a free body")
+        raise AssertionError("force or contact code ran for a free body")
 
-    for name in ("gravity", "damping", "springs"):
-        monkeypatch.setattr(forces, name, tripwire)
-    scene = sim.Scene(box(), 0.01)
-    scene.step(scene.initial_state(angular_velocity=(1, 2, 3)))
+    for cls in (forces.Gravity, forces.Damping, forces.Springs):
+        for method in ("__init__", "__call__", "wrench"):
+            monkeypatch.setattr(cls, method, tripwire)
+    for cls in (contacts.GroundContacts, contacts.PairContacts, contacts.Layout):
+        monkeypatch.setattr(cls, "__init__", tripwire)
+    for name in sim.INTEGRATORS:
+        scene = sim.Scene([box(), box()], 0.01, integrator=name)
+        scene.step(scene.initial_state(angular_velocity=(1, 2, 3)), torque=(0.1, 0, 0))
+    # The tripwires are live: a scene with gravity trips them.
+    with pytest.raises(AssertionError, match="free body"):
+        sim.Scene(box(), 0.01, gravity=(0, 0, -9.81))
 
 
 # --- states ---------------------------------------------------------------------------------------

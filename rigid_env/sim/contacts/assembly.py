@@ -85,21 +85,28 @@ class Layout:
         self.pair_share = np.array(rows).reshape(len(rows), n)
 
     def detect(self, x, q):
-        """Arms, normals and gaps of all contacts (N, C, ·) at positions (N, n, ·); ``arm_b``
-        covers the pair slots only (None without pairs)."""
+        """Arms, normals and gaps of all contacts at positions (N, n, ·); see ``gather``."""
+        ground = None if self.ground is None else self.ground.detect(x, q)
+        pairs = None if self.pairs is None else self.pairs.detect(x, q)
+        return self.gather(ground, pairs)
+
+    def gather(self, ground_hits, pair_hits):
+        """Arms, normals and gaps of all contacts (N, C, ·) from the detectors' results
+        (``GroundContacts.detect``'s (arm, gap), ``PairContacts.detect``'s list, or None);
+        ``arm_b`` covers the pair slots only (None without pairs)."""
         arms, normals, gaps, arm_b = [], [], [], None
-        if self.ground is not None:
-            arm, gap = self.ground.detect(x, q)
-            arms.append(arm.reshape(len(x), -1, 3))
-            gaps.append(gap.reshape(len(x), -1))
+        if ground_hits is not None:
+            arm, gap = ground_hits
+            arms.append(arm.reshape(len(arm), -1, 3))
+            gaps.append(gap.reshape(len(gap), -1))
             normals.append(np.broadcast_to(_UP, arms[-1].shape))
-        if self.pairs is not None:
+        if pair_hits is not None:
             arm_bs = []
-            for _, _, arm_a, arm_bb, n, gap in self.pairs.detect(x, q):
-                arms.append(arm_a.reshape(len(x), -1, 3))
-                arm_bs.append(arm_bb.reshape(len(x), -1, 3))
-                normals.append(n.reshape(len(x), -1, 3))
-                gaps.append(gap.reshape(len(x), -1))
+            for _, _, arm_a, arm_bb, n, gap in pair_hits:
+                arms.append(arm_a.reshape(len(gap), -1, 3))
+                arm_bs.append(arm_bb.reshape(len(gap), -1, 3))
+                normals.append(n.reshape(len(gap), -1, 3))
+                gaps.append(gap.reshape(len(gap), -1))
             arm_b = arm_bs[0] if len(arm_bs) == 1 else np.concatenate(arm_bs, axis=-2)
         if len(arms) == 1:
             return arms[0], arm_b, normals[0], gaps[0]
@@ -181,9 +188,9 @@ def scaled_velocity(layout, u, scale):
     return np.concatenate((zv, zw), axis=-1).reshape(len(u), -1, 1)
 
 
-def assemble(layout: Layout, x, q, u) -> Rows:
-    """Detect at (x, q) (N, n, ·) and build the rows; t₁ follows the sliding of u (N, n, 6)."""
-    arm_a, arm_b, normal, gap = layout.detect(x, q)
+def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap) -> Rows:
+    """The rows of contacts detected at orientations q (N, n, 4); t₁ follows the sliding of
+    the velocities u (N, n, 6)."""
     vrel = layout.relative_velocity(u, arm_a, arm_b)
     t1, t2 = tangents(normal, vrel)
     basis = np.stack((normal, t1, t2), axis=-2)  # (N, C, 3, 3)

@@ -31,9 +31,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .assembly import scaled_velocity
+from .warm_start import active_set_start, particle_start
+
 MAX_ITERATIONS = 500
 TOLERANCE = 1e-12
 MAX_IMPACTS = 32
+STARTS = ("active_set", "particle")
 
 
 @dataclass(frozen=True)
@@ -51,11 +55,17 @@ class SolverSettings:
         precision.
     max_impacts : impacts resolved in time order within one step per batch element (≥ 1); a
         step with more (a long Newton's cradle at a large Δt) is reported like an iteration cap.
+    start : ``"active_set"`` (default): when the particle start is not already the solution,
+        Gauss–Seidel starts from the active-set direct solve (``warm_start``), which is exact
+        for resting and sticking contacts; ``"particle"``: always from the particle start
+        (Gauss–Seidel alone; slower to converge on an incline or a resting polyhedron, see
+        ``python -m rigid_env.bench.contact_solve``).
     """
 
     max_iterations: int = MAX_ITERATIONS
     tolerance: float = TOLERANCE
     max_impacts: int = MAX_IMPACTS
+    start: str = "active_set"
 
     def __post_init__(self):
         for name in ("max_iterations", "max_impacts"):
@@ -76,6 +86,8 @@ class SolverSettings:
         if not 0 < tol < 1:
             raise ValueError(f"tolerance must be a number in (0, 1), got {self.tolerance!r}")
         object.__setattr__(self, "tolerance", tol)
+        if self.start not in STARTS:
+            raise ValueError(f"start must be one of {STARTS}, got {self.start!r}")
 
 
 def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
@@ -165,9 +177,13 @@ def _disk_step(att, eig, q, lt, vt, cap):
     out = norm > cap
     if not out.any():
         return np.einsum("nij,nj->ni", q, inside_l)
+    # A cap below rounding of the impulse: the radial point (the secular equation's root
+    # would lie beyond floating range).
+    radial = cap <= 1e-12 * norm
     gamma = np.zeros(len(p))
     p2 = p * p
     safe_cap = np.where(cap > 0, cap, 1.0)
+    p2 = np.where(radial[:, None], 0.0, p2)
     for _ in range(NEWTON_STEPS):
         d = eig + gamma[:, None]
         f = np.sum(p2 / d**2, axis=-1)
@@ -178,8 +194,63 @@ def _disk_step(att, eig, q, lt, vt, cap):
     l_disk = p / (eig + gamma[:, None])
     size = np.sqrt(np.sum(l_disk * l_disk, axis=-1))
     l_disk *= (cap / np.where(size > 0, size, 1.0))[:, None]  # exactly on the circle
+    l_disk = np.where(
+        radial[:, None], inside_l * (cap / np.where(norm > 0, norm, 1.0))[:, None], l_disk
+    )
     l_local = np.where(out[:, None], l_disk, inside_l)
     return np.einsum("nij,nj->ni", q, l_local)
+
+
+def solve_inelastic(layout, rows, u, impulse, dt, settings):
+    """The step's inelastic solve for the engaged elements: velocities u (N, n, 6) after it,
+    sweeps (N,) and converged (N,). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
+    contact: the body may close the gap this step, no more — no tunnelling; Catto, "Contact
+    Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
+    impulse of this step's impacts, which friction may also use."""
+    free = rows.velocity(u, layout)
+    target = np.where(rows.gap > 0, -rows.gap / dt, 0.0)
+    short = target - free[..., 0]
+    # First the cheap particle start (exact for a box resting or landing flat): one sweep
+    # tells whether it already is the solution.
+    lam = np.zeros(free.shape)
+    particle_start(layout, short, lam[..., 0])
+    probe = SolverSettings(1, settings.tolerance, settings.max_impacts, settings.start)
+    lam, sweeps, converged = gauss_seidel(
+        rows.delassus, free, target, layout.mu, lam, probe, extra=impulse
+    )
+    if not converged.all() and settings.start == "particle":
+        rest = np.flatnonzero(~converged)
+        lam[rest], more, converged[rest] = gauss_seidel(
+            rows.delassus[rest],
+            free[rest],
+            target[rest],
+            layout.mu,
+            lam[rest],
+            settings,
+            impulse[rest],
+        )
+        sweeps[rest] += more
+    elif not converged.all():
+        rest = np.flatnonzero(~converged)
+        sub = rows.take(rest)
+        # Contacts that can carry load: the violated ones and those the step's largest
+        # velocity correction could close (resting contacts whose v_n is rounding noise).
+        reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
+        reachable = (short[rest] > 0) | (sub.gap <= reach)
+        start = active_set_start(
+            layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
+        )
+        lam[rest], more, converged[rest] = gauss_seidel(
+            sub.delassus, free[rest], target[rest], layout.mu, start, settings, impulse[rest]
+        )
+        sweeps[rest] += more
+    if not converged.all():
+        bad = np.flatnonzero(~converged)
+        sub = rows.take(bad)
+        z = scaled_velocity(layout, u[bad], sub.scale)[..., 0]
+        dz = (lam[bad].reshape(len(bad), 1, -1) @ sub.jt)[:, 0]
+        lam[bad], _ = dissipative(lam[bad], dz, z)
+    return u + rows.velocity_change(lam, layout), sweeps, converged
 
 
 def dissipative(lam, dz, z):
@@ -200,4 +271,4 @@ def dissipative(lam, dz, z):
     return lam * s.reshape(shape), dz * s[:, None]
 
 
-__all__ = ["SolverSettings", "dissipative", "gauss_seidel"]
+__all__ = ["SolverSettings", "dissipative", "gauss_seidel", "solve_inelastic"]

@@ -1,4 +1,4 @@
-"""Integrators by name. Each is ``step(model, state, dt, forces, force, torque) -> State``.
+"""Integrators by name: one :class:`~.common.Integrator` record each, in ``RECORDS``.
 
 | name            | order | torque-free body keeps            | cost / step         | fails where            |
 |-----------------|-------|-----------------------------------|---------------------|------------------------|
@@ -10,25 +10,32 @@
 | `implicit_gyro` | 1     | never blows up; loses energy      | one 3×3 solve       | damps fast spin        |
 | `implicit`      | 1     | stiff springs bounded (any k Δt²) | one 6×6 solve/body  | damps resolved springs |
 
-Contacts (``sim.contacts``) need a semi-implicit step (positions drift with the final velocity):
-`euler`, `euler_quat`, `implicit_gyro`, `implicit`. Explicit symplectic Euler on a spring of
-natural frequency ω_n diverges once ω_n Δt > 2; `implicit` does not.
+Semi-implicit integrators (``integrate_velocity`` then ``integrate_position``) take contacts
+between their two parts: `euler`, `euler_quat`, `implicit_gyro`, `implicit`. Explicit
+symplectic Euler on a spring of natural frequency ω_n diverges once ω_n Δt > 2; `implicit`
+does not.
+
+Adding an integrator: write a module that defines its step parts and ``RECORDS = (record,)``,
+and add the module to ``_MODULES`` below; every table derives from ``RECORDS``.
 """
 
 from __future__ import annotations
 
-from .euler import euler, euler_quat
-from .implicit import implicit
-from .implicit_gyro import implicit_gyro
-from .rk4 import rk4
-from .splitting import splitting, splitting4
+from . import euler, implicit, implicit_gyro, rk4, splitting
+from .common import INTEGRATE, POSITION, VELOCITY, Integrator
 
-REGISTRY = {
-    "euler": euler,
-    "euler_quat": euler_quat,
-    "rk4": rk4,
-    "splitting": splitting,
-    "splitting4": splitting4,
-    "implicit_gyro": implicit_gyro,
-    "implicit": implicit,
-}
+_MODULES = (euler, rk4, splitting, implicit_gyro, implicit)
+
+RECORDS: dict[str, Integrator] = {r.name: r for m in _MODULES for r in m.RECORDS}
+ORDERS: dict[str, int] = {name: r.order for name, r in RECORDS.items()}
+CONTACT_CAPABLE: tuple[str, ...] = tuple(n for n, r in RECORDS.items() if r.contact_capable)
+
+__all__ = [
+    "CONTACT_CAPABLE",
+    "INTEGRATE",
+    "Integrator",
+    "ORDERS",
+    "POSITION",
+    "RECORDS",
+    "VELOCITY",
+]

@@ -3,7 +3,11 @@
 Notes, "Integración Numérica": v ← v + Δt F/m; x ← x + Δt v; L ← L + Δt T; ω = M⁻¹ L;
 R ← R + Δt ω* R; repair R (Gram–Schmidt); M⁻¹ = R M0⁻¹ Rᵀ. First order. The state keeps ω,
 so L = M ω is recovered from the start-of-step inertia, which reproduces the notes' sequence
-exactly and keeps L constant in torque-free motion.
+and keeps L constant in torque-free motion.
+
+Split into the pipeline's two parts: the velocity part applies the kicks (v, and ω = M⁻¹ L
+with the start-of-step inertia); the position part moves x and R with those (possibly
+contact-corrected) velocities and re-expresses ω = M⁻¹ L in the new orientation.
 """
 
 from __future__ import annotations
@@ -18,36 +22,54 @@ from ..rotation import (
     quat_normalize,
     quat_to_matrix,
 )
-from ..state import State
-from .common import align_sign, kick, wrench
+from .common import POSITION, VELOCITY, Integrator, align_sign, start_rotation, translate
 
 
-def _translate_and_kick(model, state, dt, forces, force, torque, rot):
-    x, q, v, w = state.arrays()
-    f, t = wrench(forces, x, q, v, w, force, torque)
-    v = kick(v, dt, model.inv_mass[:, None], f)
-    angular_momentum = model.apply_inertia(rot, w)
-    if t is not None:
-        angular_momentum = angular_momentum + dt * t
-    return x + dt * v, v, angular_momentum
+def velocity(ctx) -> None:
+    model, dt = ctx.model, ctx.dt
+    if ctx.force is not None:
+        ctx.v = ctx.v + dt * model.inv_mass[:, None] * ctx.force
+    if ctx.torque is not None:
+        rot = start_rotation(ctx)
+        momentum = model.apply_inertia(rot, ctx.w) + dt * ctx.torque
+        ctx.w = model.apply_inverse_inertia(rot, momentum)
 
 
-def euler(model, state, dt, forces, force, torque) -> State:
-    rot = quat_to_matrix(state.orientation)
-    x, v, angular_momentum = _translate_and_kick(model, state, dt, forces, force, torque, rot)
-    w = model.apply_inverse_inertia(rot, angular_momentum)
+def position_matrix(ctx) -> None:
+    model, dt, w = ctx.model, ctx.dt, ctx.w
+    rot = start_rotation(ctx)
+    momentum = model.apply_inertia(rot, w)
     # ω* R, column by column: ω × α, ω × β, ω × γ.
     w_star_r = np.swapaxes(cross(w[..., None, :], np.swapaxes(rot, -1, -2)), -1, -2)
     rot = gram_schmidt(rot + dt * w_star_r)
-    q = align_sign(matrix_to_quat(rot), state.orientation)
-    return State(x, q, v, model.apply_inverse_inertia(rot, angular_momentum))
+    translate(ctx)
+    ctx.q = align_sign(matrix_to_quat(rot), ctx.q)
+    ctx.w = model.apply_inverse_inertia(rot, momentum)
 
 
-def euler_quat(model, state, dt, forces, force, torque) -> State:
-    rot = quat_to_matrix(state.orientation)
-    x, v, angular_momentum = _translate_and_kick(model, state, dt, forces, force, torque, rot)
-    w = model.apply_inverse_inertia(rot, angular_momentum)
+def position_quat(ctx) -> None:
+    model, dt, w = ctx.model, ctx.dt, ctx.w
+    momentum = model.apply_inertia(start_rotation(ctx), w)
     # Notes: q̇ = ½ (ω, 0) ∘ q, then renormalise (the quaternion form of the repair).
     w_quat = np.concatenate((w, np.zeros_like(w[..., :1])), axis=-1)
-    q = quat_normalize(state.orientation + 0.5 * dt * quat_multiply(w_quat, state.orientation))
-    return State(x, q, v, model.apply_inverse_inertia(quat_to_matrix(q), angular_momentum))
+    q = quat_normalize(ctx.q + 0.5 * dt * quat_multiply(w_quat, ctx.q))
+    translate(ctx)
+    ctx.q = q
+    ctx.w = model.apply_inverse_inertia(quat_to_matrix(q), momentum)
+
+
+EULER = Integrator(
+    "euler",
+    ((VELOCITY, velocity), (POSITION, position_matrix)),
+    order=1,
+    symplectic=False,
+    summary="the notes' Euler on R with Gram–Schmidt repair; world L exact, energy grows",
+)
+EULER_QUAT = Integrator(
+    "euler_quat",
+    ((VELOCITY, velocity), (POSITION, position_quat)),
+    order=1,
+    symplectic=False,
+    summary="the same on quaternions (cheapest); world L exact, energy grows",
+)
+RECORDS = (EULER, EULER_QUAT)

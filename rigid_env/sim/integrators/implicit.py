@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import quat_exp, quat_multiply, quat_rotate, quat_to_matrix, skew
-from ..state import State
-from .common import wrench
+from ..rotation import quat_exp, quat_multiply, quat_rotate, skew
+from .common import POSITION, VELOCITY, Integrator, start_rotation, translate
 
 
 def _spring_matrices(model, x, q):
@@ -55,10 +54,11 @@ def _spring_matrices(model, x, q):
     return jkj, jcj
 
 
-def implicit(model, state, dt, forces, force, torque) -> State:
-    x, q, v, w = state.arrays()
-    f, t = wrench(forces, x, q, v, w, force, torque)
-    rot = quat_to_matrix(q)
+def velocity(ctx) -> None:
+    model, dt = ctx.model, ctx.dt
+    x, q, v, w = ctx.x, ctx.q, ctx.v, ctx.w
+    f, t = ctx.force, ctx.torque
+    rot = start_rotation(ctx)
     inertia = rot @ model.inertia @ np.swapaxes(rot, -1, -2)  # M = R M0 Rᵀ
     momentum = np.einsum("...ij,...j->...i", inertia, w)
     gyro = -np.cross(w, momentum)
@@ -74,5 +74,20 @@ def implicit(model, state, dt, forces, force, torque) -> State:
         system = system + dt * jcj + dt * dt * jkj
         rhs = rhs - dt * dt * np.einsum("...ij,...j->...i", jkj, u)
     u = u + np.linalg.solve(system, rhs[..., None])[..., 0]
-    v, w = u[..., :3], u[..., 3:]
-    return State(x + dt * v, quat_multiply(quat_exp(dt * w), q), np.array(v), np.array(w))
+    ctx.v, ctx.w = np.array(u[..., :3]), np.array(u[..., 3:])
+
+
+def position(ctx) -> None:
+    """x ← x + Δt v; q ← exp(Δt ω) ∘ q."""
+    translate(ctx)
+    ctx.q = quat_multiply(quat_exp(ctx.dt * ctx.w), ctx.q)
+
+
+IMPLICIT = Integrator(
+    "implicit",
+    ((VELOCITY, velocity), (POSITION, position)),
+    order=1,
+    symplectic=False,
+    summary="linearised backward Euler in springs, dampers and gyroscopic term; stiff springs",
+)
+RECORDS = (IMPLICIT,)

@@ -15,16 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import (
-    quat_exp,
-    quat_multiply,
-    quat_normalize,
-    quat_to_matrix,
-    rotate,
-    rotate_inverse,
-)
-from ..state import State
-from .common import kick, wrench
+from ..rotation import quat_exp, quat_multiply, quat_normalize, rotate, rotate_inverse
+from .common import POSITION, VELOCITY, Integrator, kick, start_rotation, translate
 
 
 def _gyroscopic_newton_step(moments, omega, h):
@@ -50,17 +42,30 @@ def _gyroscopic_newton_step(moments, omega, h):
     return out
 
 
-def implicit_gyro(model, state, dt, forces, force, torque) -> State:
-    x, q, v, w = state.arrays()
-    f, t = wrench(forces, x, q, v, w, force, torque)
-    v = kick(v, dt, model.inv_mass[:, None], f)
-    rot = quat_to_matrix(q)
+def velocity(ctx) -> None:
+    model, dt = ctx.model, ctx.dt
+    ctx.v = kick(ctx.v, dt, model.inv_mass[:, None], ctx.force)
+    rot = start_rotation(ctx)
     if model.principal_quat is not None:
         rot = rot @ model.principal_axes  # principal axes → world
-    omega = rotate_inverse(rot, w)
-    if t is not None:
-        omega = omega + dt * model.inverse_principal_moments_array * rotate_inverse(rot, t)
+    omega = rotate_inverse(rot, ctx.w)
+    if ctx.torque is not None:
+        omega = omega + dt * model.inverse_principal_moments_array * rotate_inverse(rot, ctx.torque)
     omega = _gyroscopic_newton_step(model.principal_moments, omega, dt)
-    w = rotate(rot, omega)
-    q = quat_normalize(quat_multiply(quat_exp(dt * w), q))
-    return State(x + dt * v, q, v, w)
+    ctx.w = rotate(rot, omega)
+
+
+def position(ctx) -> None:
+    """x ← x + Δt v; q ← exp(Δt ω) ∘ q (exact exponential map), renormalised."""
+    translate(ctx)
+    ctx.q = quat_normalize(quat_multiply(quat_exp(ctx.dt * ctx.w), ctx.q))
+
+
+IMPLICIT_GYRO = Integrator(
+    "implicit_gyro",
+    ((VELOCITY, velocity), (POSITION, position)),
+    order=1,
+    symplectic=False,
+    summary="semi-implicit Euler, implicit gyroscopic term; never blows up, damps fast spin",
+)
+RECORDS = (IMPLICIT_GYRO,)
