@@ -24,6 +24,7 @@ from .stages import (
     CollidePairs,
     ContactReport,
     ContactSolverWarning,
+    LimitEnergy,
     Restitute,
     SeparateContacts,
     SolveContacts,
@@ -50,6 +51,7 @@ def build(model, dt, settings: SolverSettings | None = None) -> tuple[tuple, tup
         AssembleContacts(layout),
         Restitute(layout, settings),
         SolveContacts(layout, settings),
+        LimitEnergy(layout),
     ]
     return tuple(stages), (SeparateContacts(layout),)
 

@@ -20,6 +20,7 @@ import numpy as np
 from ..rotation import cross, quat_to_matrix
 
 _UP = np.array([0.0, 0.0, 1.0])
+FAR_GAP = 1e3  # a pair slot with no contact point (box_box.FAR): its arms stay unshifted
 
 
 class Layout:
@@ -191,6 +192,15 @@ def scaled_velocity(layout, u, scale):
 def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap) -> Rows:
     """The rows of contacts detected at orientations q (N, n, 4); t₁ follows the sliding of
     the velocities u (N, n, 6)."""
+    if arm_b is not None:
+        # Both bodies of a pair take their impulses at one point, the midpoint of the two
+        # features (p_a − p_b = gap n): then no impulse, normal or friction, has a net moment,
+        # and angular momentum is conserved even at a speculative contact (gap > 0).
+        sl = layout.pair_slice
+        half = 0.5 * np.where(gap[:, sl] < FAR_GAP, gap[:, sl], 0.0)[..., None] * normal[:, sl]
+        arm_a = np.array(arm_a)
+        arm_a[:, sl] -= half
+        arm_b = arm_b + half
     vrel = layout.relative_velocity(u, arm_a, arm_b)
     t1, t2 = tangents(normal, vrel)
     basis = np.stack((normal, t1, t2), axis=-2)  # (N, C, 3, 3)

@@ -186,11 +186,15 @@ def _disk_step(att, eig, q, lt, vt, cap):
     p2 = np.where(radial[:, None], 0.0, p2)
     for _ in range(NEWTON_STEPS):
         d = eig + gamma[:, None]
-        f = np.sum(p2 / d**2, axis=-1)
-        fp = np.sum(p2 / d**3, axis=-1)
+        q2 = p2 / (d * d)
+        f = q2[:, 0] + q2[:, 1]
+        fp = (q2[:, 0] / d[:, 0]) + (q2[:, 1] / d[:, 1])
         root = np.sqrt(f)
         psi = 1.0 / np.where(root > 0, root, 1.0) - 1.0 / safe_cap
-        gamma = np.maximum(gamma - psi * f * root / np.where(fp > 0, fp, 1.0), 0.0)
+        step = psi * f * root / np.where(fp > 0, fp, 1.0)
+        gamma = np.maximum(gamma - step, 0.0)
+        if np.all(np.abs(step) <= 1e-15 * gamma):  # converged to rounding
+            break
     l_disk = p / (eig + gamma[:, None])
     size = np.sqrt(np.sum(l_disk * l_disk, axis=-1))
     l_disk *= (cap / np.where(size > 0, size, 1.0))[:, None]  # exactly on the circle

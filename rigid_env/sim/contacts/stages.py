@@ -9,11 +9,13 @@ Between a semi-implicit integrator's ``integrate_velocity`` and ``integrate_posi
 * ``restitute`` resolves the step's impacts in time order (``restitution``);
 * ``solve_contacts`` solves the inelastic problem with friction to the stated tolerance
   (``solve``) and writes ``ctx.report["contacts"]`` (a :class:`ContactReport`);
+* ``limit_energy`` scales the velocities down if the step would end with more energy than it
+  started with (``energy``);
 
 and after ``integrate_position``:
 
 * ``separate_contacts`` removes the penetration the linearised step left (rotation over the
-  step) by moving bodies, which changes no velocity.
+  step) by moving bodies, and pays the potential energy of the lift out of the kinetic energy.
 
 A solve that stops at ``max_iterations`` or ``max_impacts`` instead of converging is counted in
 the report's ``capped`` and raises a :class:`ContactSolverWarning`.
@@ -22,15 +24,18 @@ the report's ``capped`` and raises a :class:`ContactSolverWarning`.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..rotation import quat_exp, quat_multiply, quat_normalize, quat_to_matrix
+from . import energy
 from .assembly import Layout, assemble
 from .restitution import resolve_impacts
 from .solve import SolverSettings, solve_inelastic
 
 REPORT_KEY = "contacts"
+MAX_HALVINGS = 30  # of the energy guard's velocity factor; then it is 0
 
 
 class ContactSolverWarning(RuntimeWarning):
@@ -45,7 +50,9 @@ class ContactReport:
     ``iterations``: the most Gauss–Seidel sweeps any element needed; ``impacts``: the most
     impact events of any element; ``capped``: elements whose solve stopped at
     ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
-    ``tolerance``: the relative tolerance the converged elements met.
+    ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
+    largest energy excess (J) the energy guard could not take out of the kinetic energy (0
+    in every step measured so far; see ``energy``).
     """
 
     engaged: int = 0
@@ -53,6 +60,7 @@ class ContactReport:
     impacts: int = 0
     capped: int = 0
     tolerance: float = 0.0
+    unpaid_energy: float = 0.0
 
     @property
     def converged(self) -> bool:
@@ -124,6 +132,7 @@ class AssembleContacts:
         if len(engaged) == 0:
             return
         x, q = _flat(ctx)
+        hits["u1"] = u1[engaged]
         sub = (arm_a[engaged], None if arm_b is None else arm_b[engaged])
         hits["rows"] = assemble(lay, q[engaged], u1[engaged], *sub, normal[engaged], gap[engaged])
 
@@ -195,10 +204,83 @@ class SolveContacts:
             )
 
 
+class LimitEnergy:
+    """Before the position update: the step's contact response adds no energy (``energy``)."""
+
+    name = "limit_energy"
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
+
+    def __call__(self, ctx) -> None:
+        hits = _hits(ctx)
+        idx = hits.get("engaged", ())
+        if len(idx) == 0:
+            return
+        model, n, dt = ctx.model, ctx.model.n_bodies, ctx.dt
+        start = ctx.start
+        x0 = start.position.reshape(-1, n, 3)[idx]
+        rot0 = quat_to_matrix(start.orientation.reshape(-1, n, 4)[idx])
+        u0, u1, u = _velocities(ctx, start)[idx], hits["u1"], _velocities(ctx)[idx]
+        pe0 = energy.potential(model, x0)
+        e_start = energy.kinetic(model, rot0, u0) + pe0
+        e_free = energy.energy(model, x0 + dt * u1[..., :3], rot0, u1)
+        # KE at the end orientation exp(Δt ω) q₀ equals KE at q₀ (ω is that rotation's axis).
+        ke = energy.kinetic(model, rot0, u)
+        lin = energy.potential(model, x0 + dt * u[..., :3]) - pe0
+        room = np.maximum(e_start, e_free) - pe0
+        f = energy.scale_to(ke, lin, room)
+        # The end configuration's overlap (rotation over the step) lifts the body too: halve
+        # f until the separated end positions fit as well (f = 0 stays at the start).
+        q0 = start.orientation.reshape(-1, n, 4)[idx]
+        for _ in range(MAX_HALVINGS):
+            x_end = x0 + (f * dt)[:, None, None] * u[..., :3]
+            q_end = quat_normalize(
+                quat_multiply(quat_exp((f * dt)[:, None, None] * u[..., 3:]), q0)
+            )
+            pe_end = energy.potential(model, separated(self.layout, x_end, q_end))
+            over = f * f * ke + pe_end - pe0 > room + 1e-12 * np.abs(e_start) + 1e-300
+            if not over.any():
+                break
+            f = np.where(over, 0.5 * f, f)
+        else:
+            f = np.where(over, 0.0, f)
+        hits["rot0"] = rot0
+        if np.any(f < 1):
+            _write(ctx, idx, u * f[:, None, None])
+
+
+def separated(lay: Layout, x, q):
+    """Positions (N, n, 3) with the overlap at (x, q) removed: each body on the ground is
+    lifted by its deepest overlap; each body pair is pushed apart along its normal by its
+    deepest overlap, split by mass (momentum unchanged)."""
+    ground = None if lay.ground is None else lay.ground.detect(x, q)
+    pairs = None if lay.pairs is None else lay.pairs.detect(x, q)
+    _, _, normal, gap = lay.gather(ground, pairs)
+    depth = -gap
+    if not np.any(depth > 0):
+        return x
+    x = np.array(x)
+    if lay.n_ground:
+        g = len(lay.ground_bodies)
+        dg = depth[..., : lay.n_ground].reshape(len(x), g, lay.k)
+        x[..., lay.ground_bodies, 2] += np.maximum(np.max(dg, axis=-1), 0.0)
+    if lay.c > lay.n_ground:
+        pushes, offset = [], lay.n_ground
+        for pa, _, _, slots in lay.pairs.groups:
+            sl = slice(offset, offset + len(pa) * slots)
+            offset = sl.stop
+            d = depth[..., sl].reshape(len(x), len(pa), slots)
+            n = normal[..., sl, :][..., ::slots, :]
+            pushes.append(np.maximum(np.max(d, axis=-1), 0.0)[..., None] * n)
+        push = pushes[0] if len(pushes) == 1 else np.concatenate(pushes, axis=-2)
+        x += np.einsum("pn,...pk->...nk", lay.pair_share, push)
+    return x
+
+
 class SeparateContacts:
-    """After the position update: remove what penetration is left by moving bodies. Each body
-    on the ground is lifted by its deepest overlap; each body pair is pushed apart along its
-    normal by its deepest overlap, split by mass (momentum unchanged)."""
+    """After the position update: remove what overlap is left (``separated``) and pay the
+    potential energy of the lift out of the kinetic energy."""
 
     name = "separate_contacts"
 
@@ -206,33 +288,23 @@ class SeparateContacts:
         self.layout = layout
 
     def __call__(self, ctx) -> None:
-        if len(_hits(ctx).get("engaged", ())) == 0:
+        hits = _hits(ctx)
+        idx = hits.get("engaged", ())
+        if len(idx) == 0:
             return
-        lay = self.layout
         x, q = _flat(ctx)
-        idx = _hits(ctx)["engaged"]
-        x_sub, q_sub = x[idx], q[idx]
-        ground = None if lay.ground is None else lay.ground.detect(x_sub, q_sub)
-        pairs = None if lay.pairs is None else lay.pairs.detect(x_sub, q_sub)
-        _, _, normal, gap = lay.gather(ground, pairs)
-        depth = -gap
-        if not np.any(depth > 0):
+        x_sub = separated(self.layout, x[idx], q[idx])
+        if x_sub is x[idx] or np.array_equal(x_sub, x[idx]):
             return
-        x_sub = np.array(x_sub)
-        if lay.n_ground:
-            g = len(lay.ground_bodies)
-            dg = depth[..., : lay.n_ground].reshape(len(x_sub), g, lay.k)
-            x_sub[..., lay.ground_bodies, 2] += np.maximum(np.max(dg, axis=-1), 0.0)
-        if lay.c > lay.n_ground:
-            pushes, offset = [], lay.n_ground
-            for pa, _, _, slots in lay.pairs.groups:
-                sl = slice(offset, offset + len(pa) * slots)
-                offset = sl.stop
-                d = depth[..., sl].reshape(len(x_sub), len(pa), slots)
-                n = normal[..., sl, :][..., ::slots, :]
-                pushes.append(np.maximum(np.max(d, axis=-1), 0.0)[..., None] * n)
-            push = pushes[0] if len(pushes) == 1 else np.concatenate(pushes, axis=-2)
-            x_sub += np.einsum("pn,...pk->...nk", lay.pair_share, push)
+        model = ctx.model
+        lift = energy.potential(model, x_sub) - energy.potential(model, x[idx])
+        if np.any(lift > 0):
+            u = _velocities(ctx)[idx]
+            factor, unpaid = energy.pay(energy.kinetic(model, hits["rot0"], u), lift)
+            _write(ctx, idx, u * factor[:, None, None])
+            report = ctx.report.get(REPORT_KEY)
+            if report is not None and np.any(unpaid > 0):
+                ctx.report[REPORT_KEY] = replace(report, unpaid_energy=float(np.max(unpaid)))
         x = np.array(x)
         x[idx] = x_sub
         ctx.x = x.reshape(ctx.x.shape)
@@ -246,6 +318,7 @@ __all__ = [
     "ContactSolverWarning",
     "REPORT_KEY",
     "Restitute",
+    "LimitEnergy",
     "SeparateContacts",
     "SolveContacts",
 ]
