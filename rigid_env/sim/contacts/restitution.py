@@ -38,6 +38,8 @@ under gravity) from growing: an impact never adds energy, at any Δt.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .assembly import scaled_velocity
@@ -46,44 +48,47 @@ from .solve import gauss_seidel
 _OUT = -np.inf  # normal target of a contact out of play in an event
 
 
-def impact_targets(vn, s, d, eps, dt):
-    """Impact speeds v_c (≥ 0) and post-impact normal velocities of contacts with normal
-    velocity ``vn`` (< 0 approaching), half-step non-contact change ``s``, start gap ``d``."""
-    c = -(2.0 * s * d / dt + 0.5 * s * s)
-    w = vn - s
-    vc2 = np.maximum(w * w + 2.0 * c, 0.0)
-    out = s + np.sqrt(np.maximum(eps * eps * vc2 - 2.0 * c, 0.0))
-    return np.sqrt(vc2), out
+def impact_targets(vn, s, t, eps, dt):
+    """Impact speeds (≥ 0) and post-impact normal velocities of contacts approaching with
+    stored normal velocity ``vn`` and closing at time ``t`` into the step; ``s`` is the
+    normal part of half the step's non-contact velocity change (a Δt / 2)."""
+    rate = 2.0 * s / dt  # the normal acceleration a
+    w = vn + rate * (t - 0.5 * dt)  # instantaneous velocity at the closing
+    speed = np.maximum(-w, 0.0)
+    return speed, eps * speed + rate * (0.5 * dt - t)
 
 
 def resolve_impacts(layout, rows, u0, u1, dt, settings):
-    """Impacts of the step in time order. Returns ``(u, impulse, events, capped)``: the
+    """Impacts of the step in time order. Returns ``(u, impulse, events, capped, path)``: the
     velocities after them (N, n, 6), the normal impulse each contact received (N, C), the
-    number of events (N,) and whether an element still had impacts at ``max_impacts``."""
+    number of events (N,), whether an element still had impacts at ``max_impacts``, and the
+    :class:`Path` the bodies took."""
     size, c = rows.gap.shape
     impulse = np.zeros((size, c))
     events = np.zeros(size, int)
     capped = np.zeros(size, bool)
+    path = np.zeros(u1.shape[:-1] + (3,))
+    elapsed = np.zeros(size)
+    gap = np.array(rows.gap)
     if not np.any(layout.eps > 0):
-        return u1, impulse, events, capped
+        return u1, impulse, events, capped, Path(path, elapsed, gap)
     vn0 = rows.velocity(u0, layout)[..., 0]
     vn1 = rows.velocity(u1, layout)[..., 0]
     s = 0.5 * (vn1 - vn0)
-    d = np.maximum(rows.gap, 0.0)
     shift = scaled_velocity(layout, 0.5 * (u1 - u0), rows.scale)[..., 0]
     a_nn = rows.normal_delassus
     u = np.array(u1)
-    gap = np.array(rows.gap)
-    elapsed = np.zeros(size)
     struck = np.zeros((size, c), bool)
     idx = np.arange(size)
     for _ in range(settings.max_impacts + 1):
         sub = rows.take(idx) if len(idx) < size else rows
         vn = sub.velocity(u[idx], layout)[..., 0]
-        speed, target = impact_targets(vn, s[idx], d[idx], layout.eps, dt)
-        eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
         g = gap[idx]
-        tau = np.where(eligible, np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0), np.inf)
+        close = np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0)  # time to close
+        at = elapsed[idx][:, None] + close
+        speed, target = impact_targets(vn, s[idx], at, layout.eps, dt)
+        eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
+        tau = np.where(eligible, close, np.inf)
         first = np.min(tau, axis=-1)
         going = first < dt - elapsed[idx]
         if not going.any():
@@ -98,6 +103,7 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         g = g + first[:, None] * vn
         gap[idx] = g
         elapsed[idx] += first
+        path[idx] += first[:, None, None] * u[idx][..., :3]
         # Contacts closing together: within a relative 1e-9 of the event's time.
         hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
         struck[idx] |= hit
@@ -119,7 +125,24 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         u[idx] = ui + alpha[:, None, None] * du
         impulse[idx] += alpha[:, None] * lam_n[..., 0]
         events[idx] += 1
-    return u, impulse, events, capped
+    return u, impulse, events, capped, Path(path, elapsed, gap)
+
+
+@dataclass
+class Path:
+    """Where the impacts left the bodies: ``translation`` (N, n, 3) travelled up to the last
+    event, at time ``elapsed`` (N,) into the step, with the contacts' gaps ``gap`` (N, C)
+    there. The step then ends with x = x₀ + translation + (Δt − elapsed) v: a ball that a
+    Newton's cradle sets moving mid-step travels only the rest of the step, and the inelastic
+    solve keeps the gaps from ``gap`` over the remaining time."""
+
+    translation: np.ndarray
+    elapsed: np.ndarray
+    gap: np.ndarray
+
+    def displacement(self, u):
+        """The position update's correction to x₀ + Δt v: translation − elapsed v, (N, n, 3)."""
+        return self.translation - self.elapsed[:, None, None] * u[..., :3]
 
 
 def _energy_step(z, dz, shift):

@@ -205,14 +205,17 @@ def _disk_step(att, eig, q, lt, vt, cap):
     return np.einsum("nij,nj->ni", q, l_local)
 
 
-def solve_inelastic(layout, rows, u, impulse, dt, settings):
+def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=None):
     """The step's inelastic solve for the engaged elements: velocities u (N, n, 6) after it,
     sweeps (N,) and converged (N,). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
     contact: the body may close the gap this step, no more — no tunnelling; Catto, "Contact
     Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
-    impulse of this step's impacts, which friction may also use."""
+    impulse of this step's impacts, which friction may also use; ``gap`` (N, C) and
+    ``remaining`` (N,) the gaps and time left after the impacts (default: the step's)."""
     free = rows.velocity(u, layout)
-    target = np.where(rows.gap > 0, -rows.gap / dt, 0.0)
+    if gap is None:
+        gap, remaining = rows.gap, np.full(len(u), dt)
+    target = np.where(gap > 0, -gap / remaining[:, None], 0.0)
     short = target - free[..., 0]
     # First the cheap particle start (exact for a box resting or landing flat): one sweep
     # tells whether it already is the solution.
@@ -240,7 +243,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings):
         # Contacts that can carry load: the violated ones and those the step's largest
         # velocity correction could close (resting contacts whose v_n is rounding noise).
         reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
-        reachable = (short[rest] > 0) | (sub.gap <= reach)
+        reachable = (short[rest] > 0) | (gap[rest] <= reach)
         start = active_set_start(
             layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
         )

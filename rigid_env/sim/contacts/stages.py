@@ -152,10 +152,11 @@ class Restitute:
             return
         u0 = _velocities(ctx, ctx.start)[idx]
         u1 = _velocities(ctx)[idx]
-        u, impulse, events, capped = resolve_impacts(
+        u, impulse, events, capped, path = resolve_impacts(
             self.layout, hits["rows"], u0, u1, ctx.dt, self.settings
         )
         hits["impulse"], hits["events"], hits["impact_capped"] = impulse, events, capped
+        hits["path"] = path
         if np.any(events):
             _write(ctx, idx, u)
 
@@ -179,8 +180,13 @@ class SolveContacts:
         impulse = hits.get("impulse")
         if impulse is None:
             impulse = np.zeros(rows.gap.shape)
+        path = hits.get("path")
+        if path is None:
+            gap = remaining = None
+        else:
+            gap, remaining = path.gap, ctx.dt - path.elapsed
         u, sweeps, converged = solve_inelastic(
-            self.layout, rows, _velocities(ctx)[idx], impulse, ctx.dt, settings
+            self.layout, rows, _velocities(ctx)[idx], impulse, ctx.dt, settings, gap, remaining
         )
         _write(ctx, idx, u)
         impact_capped = hits.get("impact_capped")
@@ -227,19 +233,25 @@ class LimitEnergy:
         e_free = energy.energy(model, x0 + dt * u1[..., :3], rot0, u1)
         # KE at the end orientation exp(Δt ω) q₀ equals KE at q₀ (ω is that rotation's axis).
         ke = energy.kinetic(model, rot0, u)
-        lin = energy.potential(model, x0 + dt * u[..., :3]) - pe0
-        room = np.maximum(e_start, e_free) - pe0
+        path = hits.get("path")
+        shift = np.zeros(x0.shape) if path is None else path.displacement(u)
+        # With a path, x_end = x₀ + translation + (Δt − elapsed) f v: PE is still linear in f.
+        base = x0 + shift + (0.0 if path is None else path.elapsed[:, None, None]) * u[..., :3]
+        tail = dt - (0.0 if path is None else path.elapsed)
+        pe_base = energy.potential(model, base) - pe0
+        lin = energy.potential(model, base + tail[:, None, None] * u[..., :3]) - pe0 - pe_base
+        room = np.maximum(e_start, e_free) - pe0 - pe_base
         f = energy.scale_to(ke, lin, room)
         # The end configuration's overlap (rotation over the step) lifts the body too: halve
         # f until the separated end positions fit as well (f = 0 stays at the start).
         q0 = start.orientation.reshape(-1, n, 4)[idx]
         for _ in range(MAX_HALVINGS):
-            x_end = x0 + (f * dt)[:, None, None] * u[..., :3]
+            x_end = base + (f * tail)[:, None, None] * u[..., :3]
             q_end = quat_normalize(
                 quat_multiply(quat_exp((f * dt)[:, None, None] * u[..., 3:]), q0)
             )
             pe_end = energy.potential(model, separated(self.layout, x_end, q_end))
-            over = f * f * ke + pe_end - pe0 > room + 1e-12 * np.abs(e_start) + 1e-300
+            over = f * f * ke + pe_end - pe0 - pe_base > room + 1e-12 * np.abs(e_start) + 1e-300
             if not over.any():
                 break
             f = np.where(over, 0.5 * f, f)
@@ -247,7 +259,15 @@ class LimitEnergy:
             f = np.where(over, 0.0, f)
         hits["rot0"] = rot0
         if np.any(f < 1):
-            _write(ctx, idx, u * f[:, None, None])
+            u = u * f[:, None, None]
+            _write(ctx, idx, u)
+        if path is not None and np.any(path.elapsed > 0):
+            # x_end = x₀ + Δt v + displacement, the path's translation − elapsed v.
+            shift = path.displacement(u)
+            full = np.zeros(ctx.x.reshape(-1, n, 3).shape)
+            full[idx] = shift
+            full = full.reshape(ctx.x.shape)
+            ctx.displacement = full if ctx.displacement is None else ctx.displacement + full
 
 
 def separated(lay: Layout, x, q):
