@@ -35,6 +35,7 @@ def test_stages_and_integrator_choice():
         "assemble_contacts",
         "restitute",
         "solve_contacts",
+        "limit_energy",
         "integrate_position",
         "separate_contacts",
     )
@@ -47,6 +48,7 @@ def test_stages_and_integrator_choice():
         "assemble_contacts",
         "restitute",
         "solve_contacts",
+        "limit_energy",
         "integrate_position",
         "separate_contacts",
     )

@@ -39,6 +39,7 @@ def test_contacts_sit_between_the_velocity_and_position_updates():
         "assemble_contacts",
         "restitute",
         "solve_contacts",
+        "limit_energy",
         "integrate_position",
         "separate_contacts",
     )

@@ -130,7 +130,8 @@ class Rows:
 
     ``jt`` (N, 3C, 6n) is J̃ = J M^(-1/2); ``delassus`` (N, 3C, 3C) = J̃ J̃ᵀ; ``scale``
     (N, n, 3, 3) = R L maps scaled angular coordinates back to ω; ``gap`` (N, C) the signed
-    distances at the step's start; ``normal`` (N, C, 3).
+    distances at the step's start; ``normal`` (N, C, 3); ``arm_a``/``arm_b`` the detected
+    arms (before the midpoint shift) and ``q`` the orientations they were detected at.
     """
 
     jt: np.ndarray
@@ -140,6 +141,7 @@ class Rows:
     normal: np.ndarray
     arm_a: np.ndarray
     arm_b: np.ndarray | None
+    q: np.ndarray
 
     def take(self, idx) -> Rows:
         return Rows(
@@ -150,7 +152,14 @@ class Rows:
             self.normal[idx],
             self.arm_a[idx],
             None if self.arm_b is None else self.arm_b[idx],
+            self.q[idx],
         )
+
+    def moved(self, layout, u, shift) -> Rows:
+        """The rows after the bodies translated by ``shift`` (N, n, 3) (pairs' arms only)."""
+        if self.arm_b is None:
+            return self
+        return assemble(layout, self.q, u, self.arm_a, self.arm_b, self.normal, self.gap, shift)
 
     @property
     def normal_delassus(self) -> np.ndarray:
@@ -189,24 +198,29 @@ def scaled_velocity(layout, u, scale):
     return np.concatenate((zv, zw), axis=-1).reshape(len(u), -1, 1)
 
 
-def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap) -> Rows:
+def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap, shift=None) -> Rows:
     """The rows of contacts detected at orientations q (N, n, 4); t₁ follows the sliding of
-    the velocities u (N, n, 6)."""
+    the velocities u (N, n, 6). ``shift`` (N, n, 3): the bodies' translation since the
+    detection (an impact's time into the step); the rows keep the detected arms and gaps."""
+    raw_a, raw_b = arm_a, arm_b
     if arm_b is not None:
         # Both bodies of a pair take their impulses at one point, the midpoint of the two
-        # features (p_a − p_b = gap n): then no impulse, normal or friction, has a net moment,
-        # and angular momentum is conserved even at a speculative contact (gap > 0).
+        # features (p_a − p_b = gap n + the relative translation since): then no impulse,
+        # normal or friction, has a net moment, and angular momentum is conserved at a
+        # speculative contact (gap > 0) and at an impact part-way through the step.
         sl = layout.pair_slice
-        half = 0.5 * np.where(gap[:, sl] < FAR_GAP, gap[:, sl], 0.0)[..., None] * normal[:, sl]
+        apart = np.where(gap[:, sl] < FAR_GAP, gap[:, sl], 0.0)[..., None] * normal[:, sl]
+        if shift is not None:
+            apart = apart + shift[:, layout.pa] - shift[:, layout.pb]
         arm_a = np.array(arm_a)
-        arm_a[:, sl] -= half
-        arm_b = arm_b + half
+        arm_a[:, sl] -= 0.5 * apart
+        arm_b = arm_b + 0.5 * apart
     vrel = layout.relative_velocity(u, arm_a, arm_b)
     t1, t2 = tangents(normal, vrel)
     basis = np.stack((normal, t1, t2), axis=-2)  # (N, C, 3, 3)
     scale = quat_to_matrix(q) @ layout.root_inv_inertia  # R L (N, n, 3, 3)
     jt = _scaled_jacobian(layout, basis, arm_a, arm_b, scale)
-    return Rows(jt, jt @ np.swapaxes(jt, -1, -2), scale, gap, normal, arm_a, arm_b)
+    return Rows(jt, jt @ np.swapaxes(jt, -1, -2), scale, gap, normal, raw_a, raw_b, q)
 
 
 def _scaled_jacobian(lay, basis, arm_a, arm_b, scale):

@@ -76,7 +76,6 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
     vn1 = rows.velocity(u1, layout)[..., 0]
     s = 0.5 * (vn1 - vn0)
     shift = scaled_velocity(layout, 0.5 * (u1 - u0), rows.scale)[..., 0]
-    a_nn = rows.normal_delassus
     u = np.array(u1)
     struck = np.zeros((size, c), bool)
     idx = np.arange(size)
@@ -99,16 +98,18 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         keep = np.flatnonzero(going)
         idx, vn, tau, target, g = idx[keep], vn[keep], tau[keep], target[keep], g[keep]
         eligible, first = eligible[keep], first[keep]
-        sub = rows.take(idx)
         g = g + first[:, None] * vn
         gap[idx] = g
         elapsed[idx] += first
         path[idx] += first[:, None, None] * u[idx][..., :3]
+        # The impulses act where the bodies are now (pairs: the features' midpoint there).
+        sub = rows.take(idx).moved(layout, u[idx], path[idx])
+        a_sub = sub.normal_delassus
         # Contacts closing together: within a relative 1e-9 of the event's time.
         hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
         struck[idx] |= hit
         lam_n, _, _ = gauss_seidel(
-            a_nn[idx],
+            a_sub,
             vn[..., None],
             np.where(hit, target, _OUT),
             layout.mu,

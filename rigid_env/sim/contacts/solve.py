@@ -184,6 +184,7 @@ def _disk_step(att, eig, q, lt, vt, cap):
     p2 = p * p
     safe_cap = np.where(cap > 0, cap, 1.0)
     p2 = np.where(radial[:, None], 0.0, p2)
+    done = np.zeros(len(p), bool)
     for _ in range(NEWTON_STEPS):
         d = eig + gamma[:, None]
         q2 = p2 / (d * d)
@@ -191,9 +192,11 @@ def _disk_step(att, eig, q, lt, vt, cap):
         fp = (q2[:, 0] / d[:, 0]) + (q2[:, 1] / d[:, 1])
         root = np.sqrt(f)
         psi = 1.0 / np.where(root > 0, root, 1.0) - 1.0 / safe_cap
-        step = psi * f * root / np.where(fp > 0, fp, 1.0)
+        step = np.where(done, 0.0, psi * f * root / np.where(fp > 0, fp, 1.0))
         gamma = np.maximum(gamma - step, 0.0)
-        if np.all(np.abs(step) <= 1e-15 * gamma):  # converged to rounding
+        # Converged entries stay put: an element's result does not depend on its batch.
+        done |= np.abs(step) <= 1e-15 * gamma
+        if done.all():
             break
     l_disk = p / (eig + gamma[:, None])
     size = np.sqrt(np.sum(l_disk * l_disk, axis=-1))

@@ -181,12 +181,15 @@ class SolveContacts:
         if impulse is None:
             impulse = np.zeros(rows.gap.shape)
         path = hits.get("path")
+        u = _velocities(ctx)[idx]
         if path is None:
             gap = remaining = None
         else:
             gap, remaining = path.gap, ctx.dt - path.elapsed
+            if np.any(path.elapsed > 0):
+                rows = rows.moved(self.layout, u, path.translation)
         u, sweeps, converged = solve_inelastic(
-            self.layout, rows, _velocities(ctx)[idx], impulse, ctx.dt, settings, gap, remaining
+            self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining
         )
         _write(ctx, idx, u)
         impact_capped = hits.get("impact_capped")
