@@ -288,13 +288,16 @@ def test_batch_equals_single_bitwise():
         batch_shape=(3,),
     )
     singles = [batch[i] for i in range(3)]
-    for _ in range(200):
+    for k in range(200):
         batch = scene.step(batch)
         singles = [scene.step(s) for s in singles]
         for i in range(3):
             for got, want in zip(batch[i].arrays(), singles[i].arrays(), strict=True):
                 assert np.array_equal(got, want)
-    assert 0.45 < batch.position[0, 1, 2] < 0.62  # element 0 came to lie on the lower box
+        if k == 60:
+            # Element 0's upper box landed on the lower one (top face at 0.4 m): free fall
+            # would have taken it to 0.75 − ½ g (61 Δt)² = 0.43 m by now.
+            assert batch.position[0, 1, 2] > 0.55
 
 
 def test_unsupported_pairs_name_the_pair():
