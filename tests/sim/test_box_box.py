@@ -10,10 +10,10 @@ import os
 
 import numpy as np
 import pytest
-from rigid_env.sim.contacts.solve import dissipative
 
 from rigid_env import sim
 from rigid_env.sim.contacts.box_box import FAR, box_box
+from rigid_env.sim.contacts.solve import dissipative
 from rigid_env.sim.rotation import quat_exp
 
 G = 9.81
