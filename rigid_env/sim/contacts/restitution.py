@@ -14,26 +14,25 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    moves, reaches the third, …) and the loop goes on until no impact falls within the step
    (or ``max_impacts``, reported).
 
-Targets. Under a constant non-contact acceleration a (gravity), the stored velocities and
-positions of semi-implicit Euler are exact samples of a parabola whose energy per unit mass
-along the normal, H = ½ w² − a d with w = v_n − ½ a Δt (the velocity at the step's instant,
-i.e. half a step of forces removed), is conserved in free flight. Its impact speed at the
-ground is v_c = √(w² + 2c), c = −(a d + ⅛ a² Δt²), and Newton's law on the instantaneous
-velocities, ε v_c out, scales the parabola's height above the contact by ε² — whatever the
-impact's phase within the step. Leaving from the stored position (gap d) with that energy gives
+Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ up to the last
+event, then the rest of the step with the final velocity (``Path``; the position update adds
+the difference to x₀ + Δt v as its displacement). A ball a Newton's cradle sets moving
+mid-step travels only the rest of the step, and the inelastic solve keeps the gaps where the
+impacts left them, over the remaining time. Impulses act where the bodies are at the event
+(``Rows.moved``): a pair's impulses at the features' midpoint there, so angular momentum is
+exact.
 
-    w⁺ = √(ε² v_c² − 2c),   v_n⁺ = ½ a Δt + w⁺,
+Targets. Semi-implicit Euler under a constant non-contact acceleration a (gravity) stores
+step-mean velocities: the instantaneous normal velocity at a time t into the step is
+w = v_n + a (t − Δt/2). Newton's law acts on it at the closing, w⁺ = −ε w, and the stored
+velocity after the event is the step-mean of the outgoing motion, v_n⁺ = −ε w + a (Δt/2 − t).
+With the path above, the steps after a bounce sample the outgoing parabola to O(a Δt²):
+apexes fall as ε²ᵏ h whatever the impact's phase within the step.
 
-so a ball dropped with ε = 1 reaches its height again to rounding, and with ε < 1 the apexes
-fall as ε²ᵏ h (a per contact: the normal part of half the step's non-contact velocity change).
-
-Energy guard. Newton's law at several simultaneous contacts can add energy (a tumbling box
-with ε = 1). Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] such that
-neither the kinetic energy nor the kinetic energy of the instantaneous velocities u − s
-(s = half the step's non-contact velocity change) grows: both are convex quadratics in α, so
-α = min(1, −2 z·dz / |dz|²) over the two (z = M^(1/2) u coordinates). The second keeps the
-step's modified energy KE + PE − ½ Δt m g·v (conserved by semi-implicit Euler in free flight
-under gravity) from growing: an impact never adds energy, at any Δt.
+Energy. Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] that keeps the
+kinetic energy from growing (Newton's law at several simultaneous contacts can add energy: a
+tumbling box with ε = 1); α = min(1, −2 z·dz / |dz|²) in z = M^(1/2) u coordinates. The step's
+total energy is guarded after the solve (``energy``).
 """
 
 from __future__ import annotations
@@ -75,7 +74,6 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
     vn0 = rows.velocity(u0, layout)[..., 0]
     vn1 = rows.velocity(u1, layout)[..., 0]
     s = 0.5 * (vn1 - vn0)
-    shift = scaled_velocity(layout, 0.5 * (u1 - u0), rows.scale)[..., 0]
     u = np.array(u1)
     struck = np.zeros((size, c), bool)
     idx = np.arange(size)
@@ -122,7 +120,7 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         ui = u[idx]
         z = scaled_velocity(layout, ui, sub.scale)[..., 0]
         dz = scaled_velocity(layout, du, sub.scale)[..., 0]
-        alpha = _energy_step(z, dz, shift[idx])
+        alpha = _energy_step(z, dz)
         u[idx] = ui + alpha[:, None, None] * du
         impulse[idx] += alpha[:, None] * lam_n[..., 0]
         events[idx] += 1
@@ -146,14 +144,11 @@ class Path:
         return self.translation - self.elapsed[:, None, None] * u[..., :3]
 
 
-def _energy_step(z, dz, shift):
-    """Largest α ∈ [0, 1] with ½|z + α dz|² ≤ ½|z|² and ½|z − shift + α dz|² ≤ ½|z − shift|²."""
+def _energy_step(z, dz):
+    """Largest α ∈ [0, 1] with ½|z + α dz|² ≤ ½|z|²: the impulse adds no kinetic energy."""
     quad = np.sum(dz * dz, axis=-1)
-    safe = np.where(quad > 0, quad, 1.0)
-    alpha = np.ones(len(z))
-    for ref in (z, z - shift):
-        lin = np.sum(ref * dz, axis=-1)
-        alpha = np.minimum(alpha, np.where(quad > 0, -2.0 * lin / safe, 1.0))
+    lin = np.sum(z * dz, axis=-1)
+    alpha = np.where(quad > 0, -2.0 * lin / np.where(quad > 0, quad, 1.0), 1.0)
     return np.clip(alpha, 0.0, 1.0)
 
 
