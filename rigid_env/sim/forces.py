@@ -128,7 +128,3 @@ def build(model: Model) -> tuple:
     if model.springs:
         stages.append(Springs(model))
     return tuple(stages)
-
-
-def is_velocity_dependent(stages) -> bool:
-    return any(s.velocity_dependent for s in stages)

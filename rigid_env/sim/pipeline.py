@@ -40,6 +40,9 @@ The context (:class:`StepContext`), all arrays batch-first, ``(*batch, n_bodies,
 ``report``
     a dict of per-step facts that the scene exposes afterwards as ``scene.report`` (e.g. a
     contact solve that stopped at its iteration cap says so there).
+``cache``
+    a dict for values one stage computes for a later stage of the same owner (e.g. the
+    start-of-step rotation matrix the integrator's two parts share); keys are the owner's.
 
 Order of a step
 ---------------

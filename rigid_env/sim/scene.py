@@ -269,7 +269,9 @@ class Scene:
                 + ", ".join(f"{k} {a.shape}" for k, a in zip(STATE_FIELDS, arrays, strict=True))
             )
         # |q|² − 1 ≈ 2 (|q| − 1); a zero, non-finite or overflowing |q|² fails the comparison.
-        deviation = np.abs(_norm2(q) - 1.0)
+        # (One einsum: its summation order does not matter for a tolerance check.)
+        with np.errstate(over="ignore", invalid="ignore"):
+            deviation = np.abs(np.einsum("...i,...i->...", q, q) - 1.0)
         if not np.all(deviation <= 2 * ORIENTATION_TOLERANCE):
             raise ValueError(
                 f"state.orientation must hold finite unit quaternions (x, y, z, w) with |q| "
@@ -299,8 +301,14 @@ class Scene:
         """Total world angular momentum about a world point: Σ (x − o) × m v + M ω."""
         x, q, v, w = self._arrays(state)
         about = _finite(about, "about")
-        if about.shape != (3,):
-            raise ValueError(f"about must be a 3-vector, got shape {about.shape}")
+        try:
+            ok = about.shape[-1] == 3 and np.broadcast_shapes(about.shape, x.shape) == x.shape
+        except ValueError:
+            ok = False
+        if not ok:
+            raise ValueError(
+                f"about must be a 3-vector or broadcast to {x.shape}, got {about.shape}"
+            )
         spin = self.model.apply_inertia(quat_to_matrix(q), w)
         orbit = cross(x - about, v)
         return np.sum(spin + self.model.mass[:, None] * orbit, axis=-2)
@@ -332,7 +340,8 @@ class Scene:
 def _norm2(q: np.ndarray) -> np.ndarray:
     """|q|² summed in a fixed order: a SIMD reduction's rounding can depend on the arrays'
     memory alignment, which would make a step's result depend on where its input lives."""
-    return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
+    with np.errstate(over="ignore"):  # an overflow to infinity is then rejected, not noted
+        return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
 
 
 def _backend(value: str | None) -> str:
@@ -375,5 +384,9 @@ def _load(value, name: str, shape: tuple[int, ...]):
 
 
 def _all_finite(state: State) -> bool:
-    # Elementwise, not a sum: a sum of large finite values can overflow to infinity.
+    # A NaN or infinity anywhere makes an array's sum non-finite (one reduction per array);
+    # so can large finite values, whose sum overflows: only then look element by element.
+    with np.errstate(over="ignore", invalid="ignore"):
+        if all(np.isfinite(arr.sum()) for arr in state.arrays()):
+            return True
     return all(np.isfinite(arr).all() for arr in state.arrays())

@@ -14,7 +14,14 @@ class State:
     """Positions of the centres of mass, orientations (x, y, z, w), velocities; world frame.
 
     Shapes ``(*batch_shape, n_bodies, 3)`` (orientation ``(…, 4)``). A step never modifies a
-    state: it returns a new one.
+    state: it returns a new one, float64, sharing no memory with its input.
+
+    Orientations must be unit quaternions. ``Scene.initial_state`` normalises any non-zero
+    quaternion; a state built by hand is checked by ``Scene.step`` and the read-outs: |q|
+    within ``scene.ORIENTATION_TOLERANCE`` (1e-6) of 1 is accepted (the step renormalises
+    its own copy, so e.g. float32 data works), farther off, zero or non-finite is a
+    ``ValueError`` naming ``orientation`` (rejected rather than rescaled: a quaternion that
+    far from unit is a bug upstream, not rounding).
     """
 
     position: np.ndarray

@@ -139,8 +139,9 @@ def test_speed_records_cover_every_integrator_and_breakdown(runs):
     # A free body lists only "integrate": no force term or contact stage appears in its step.
     assert rows["stages"] == ["integrate"]
     assert [r["stage"] for r in rows["rows"]] == [
-        "integrate (integrator's own work)",
-        "Scene.step's own work (validation, finiteness check)",
+        "Scene.step's input validation",
+        "integrate",
+        "Scene.step's finiteness check",
         "step total (instrumented)",
     ]
     assert doc["memory"]["free_body"]["state_bytes_per_body"] == 13 * 8

@@ -40,9 +40,11 @@ class GroundContacts:
                 radii.append(0.0)
                 keep.append(4)
             elif isinstance(shape, Polyhedron):
-                points.append(np.asarray(shape.vertices, float))
+                # Only vertices of its faces: a listed point no face uses is not on the body.
+                used = sorted({i for face in shape.faces for i in face})
+                points.append(np.asarray(shape.vertices, float)[used])
                 radii.append(0.0)
-                keep.append(min(len(shape.vertices), 8))
+                keep.append(min(len(used), 8))
             else:
                 raise ValueError(f"ground: unsupported shape {type(shape).__name__}")
         n_points = max(len(p) for p in points)

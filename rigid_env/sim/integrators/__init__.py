@@ -2,7 +2,7 @@
 
 | name            | order | torque-free body keeps            | cost / step         | fails where            |
 |-----------------|-------|-----------------------------------|---------------------|------------------------|
-| `euler`         | 1     | world L exactly; energy grows     | matrix + repair     | energy drift ∝ Δt      |
+| `euler`         | 1     | world L exactly; energy drifts    | matrix + repair     | energy drift ∝ Δt      |
 | `euler_quat`    | 1     | world L exactly; energy grows     | cheapest            | as `euler`             |
 | `rk4`           | 4     | nothing exactly; drift O(Δt⁴)     | 4 force evaluations | long runs, stiff terms |
 | `splitting`     | 2     | world L exactly; energy bounded   | 5 axis rotations    | phase error O(Δt²)     |

@@ -63,7 +63,7 @@ EULER = Integrator(
     ((VELOCITY, velocity), (POSITION, position_matrix)),
     order=1,
     symplectic=False,
-    summary="the notes' Euler on R with Gram–Schmidt repair; world L exact, energy grows",
+    summary="the notes' Euler on R with Gram–Schmidt repair; world L exact, energy drifts",
 )
 EULER_QUAT = Integrator(
     "euler_quat",
