@@ -63,6 +63,8 @@ class Layout:
                 ):
                     lst.append(np.full(size, val))
         self.a, self.b = np.concatenate(a), np.concatenate(b)
+        # Manifold of each contact: one per body on the ground, one per body pair.
+        self.manifold = np.where(self.b < 0, self.a, n + n * self.a + np.maximum(self.b, 0))
         self.mu, self.eps = np.concatenate(mu), np.concatenate(eps)
         self.threshold = np.concatenate(thr)
         self.c = len(self.a)

@@ -7,7 +7,9 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
 1. Per contact, its gap d (at the step's start, linearised: d + τ v_n later) closes after
    τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
    the material's threshold, not yet struck this step) is the next event; all impact contacts
-   closing at that instant (a box landing flat: four corners) are struck together.
+   closing at that instant, and those of the same manifold (body on the ground, body pair)
+   closing later in the step (a box landing flat or nearly so: four corners), are struck
+   together, each with its own closing time.
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
    only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
    so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
@@ -103,8 +105,14 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         # The impulses act where the bodies are now (pairs: the features' midpoint there).
         sub = rows.take(idx).moved(layout, u[idx], path[idx])
         a_sub = sub.normal_delassus
-        # Contacts closing together: within a relative 1e-9 of the event's time.
+        # Contacts closing together (within a relative 1e-9 of the event's time), and the other
+        # contacts of their manifolds that close later in this step: one body's corners on
+        # one surface are struck together, as one step would (a box landing nearly flat
+        # bounces like a flat one instead of rocking from corner to corner within 4 ms).
         hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
+        same = layout.manifold[:, None] == layout.manifold[None, :]  # (C, C)
+        struck_manifold = (hit.astype(float) @ same) > 0
+        hit |= eligible & struck_manifold & (tau < (dt - elapsed[idx] + first)[:, None])
         struck[idx] |= hit
         lam_n, _, _ = gauss_seidel(
             a_sub,
