@@ -442,6 +442,11 @@ class BoxLandingTask(BatchedTask):
 
         def latch(state):  # the touch switches, sampled at every physics step
             touched[:] |= self._lowest_corner(state) < self.contact_tolerance
+            # A bounce can begin and end within one physics step (impacts are resolved at
+            # their instant): the contact report's impulses see it when the positions do not.
+            report = self.scene.report.get("contacts")
+            if report is not None and report.touched is not None:
+                touched[:] |= report.touched
 
         self.state = step_body_torque(
             self.scene, self.state, self._rot, torque, self.frame_skip, after=latch

@@ -275,7 +275,9 @@ def test_speed_covers_contact_scenes_and_breakdowns_add_up(runs):
         assert all(p > 0 for p in parts), (name, info["rows"])
         stages = [r["stage"] for r in info["rows"][1:-2]]
         assert stages == list(info["stages"]), name
-    assert doc["stage_breakdown"]["two_body_impact"]["stages"][1:3] == [
+    assert doc["stage_breakdown"]["two_body_impact"]["stages"][1:5] == [
         "collide_pairs",
+        "assemble_contacts",
+        "restitute",
         "solve_contacts",
     ]

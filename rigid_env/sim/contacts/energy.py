@@ -1,11 +1,13 @@
 """Energy guard of a contact step: the contact response never adds energy, at any Δt.
 
 Before the position update, per batch element, the step's energy E = KE + PE_gravity with
-the positions it is about to take (x₀ + Δt v) must not exceed
+the positions it is about to take (x₀ + Δt v, or along the impacts' path, ``restitution``)
+must not exceed
 
     E_ref = max(E_start, E_free),
 
-E_free the energy the step would have without contacts (the forces' own work, e.g. actuation).
+E_free the energy the step would have without contacts (the forces' own work, e.g. actuation;
+a spring's potential is not counted, its work shows in E_free's kinetic energy).
 If it would, the element's velocities are scaled by the largest f ∈ [0, 1] that keeps it
 (E(f) is a quadratic in f and E(0) = PE(x₀) ≤ E_start, so f exists; scaling keeps every
 contact constraint v_n ≥ −d/Δt satisfied). Sources of such a gain: the linearised solve at a

@@ -8,8 +8,8 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
    the material's threshold, not yet struck this step) is the next event; all impact contacts
    closing at that instant, and those of the same manifold (body on the ground, body pair)
-   closing later in the step (a box landing flat or nearly so: four corners), are struck
-   together, each with its own closing time.
+   closing within one step of it (a box landing flat or nearly so: four corners), are struck
+   together, each with its own closing time (at most the step's end).
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
    only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
    so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
@@ -84,7 +84,7 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         vn = sub.velocity(u[idx], layout)[..., 0]
         g = gap[idx]
         close = np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0)  # time to close
-        at = elapsed[idx][:, None] + close
+        at = np.minimum(elapsed[idx][:, None] + close, dt)
         speed, target = impact_targets(vn, s[idx], at, layout.eps, dt)
         eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
         tau = np.where(eligible, close, np.inf)
@@ -106,13 +106,13 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         sub = rows.take(idx).moved(layout, u[idx], path[idx])
         a_sub = sub.normal_delassus
         # Contacts closing together (within a relative 1e-9 of the event's time), and the other
-        # contacts of their manifolds that close later in this step: one body's corners on
-        # one surface are struck together, as one step would (a box landing nearly flat
-        # bounces like a flat one instead of rocking from corner to corner within 4 ms).
+        # contacts of their manifolds that close within one step of it: the step cannot order
+        # one body's corners on one surface closer than Δt, so they are struck together (a box
+        # landing nearly flat bounces like a flat one instead of rocking from edge to edge).
         hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
         same = layout.manifold[:, None] == layout.manifold[None, :]  # (C, C)
         struck_manifold = (hit.astype(float) @ same) > 0
-        hit |= eligible & struck_manifold & (tau < (dt - elapsed[idx] + first)[:, None])
+        hit |= eligible & struck_manifold & (tau < (first + dt)[:, None])
         struck[idx] |= hit
         lam_n, _, _ = gauss_seidel(
             a_sub,

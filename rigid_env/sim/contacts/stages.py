@@ -42,7 +42,7 @@ class ContactSolverWarning(RuntimeWarning):
     """A contact solve stopped at its iteration or impact cap instead of converging."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ContactReport:
     """What the contact stages did in one step (``scene.report["contacts"]``).
 
@@ -52,7 +52,10 @@ class ContactReport:
     ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
     ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
     largest energy excess (J) the energy guard could not take out of the kinetic energy (0
-    in every step measured so far; see ``energy``).
+    in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
+    (N,) bool) whether a contact carried an impulse this step — a touch sensor that also sees
+    a bounce which began and ended within the step (the positions at the step's ends may both
+    be clear of the ground).
     """
 
     engaged: int = 0
@@ -61,6 +64,7 @@ class ContactReport:
     capped: int = 0
     tolerance: float = 0.0
     unpaid_energy: float = 0.0
+    touched: np.ndarray | None = None
 
     @property
     def converged(self) -> bool:
@@ -173,8 +177,10 @@ class SolveContacts:
         hits = _hits(ctx)
         idx = hits["engaged"]
         settings = self.settings
+        size = ctx.x.reshape(-1, ctx.model.n_bodies, 3).shape[0]
+        touched = np.zeros(size, bool)
         if len(idx) == 0:
-            ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance)
+            ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance, touched=touched)
             return
         rows = hits["rows"]
         impulse = hits.get("impulse")
@@ -188,10 +194,12 @@ class SolveContacts:
             gap, remaining = path.gap, ctx.dt - path.elapsed
             if np.any(path.elapsed > 0):
                 rows = rows.moved(self.layout, u, path.translation)
+        u_in = u
         u, sweeps, converged = solve_inelastic(
             self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining
         )
         _write(ctx, idx, u)
+        touched[idx] = np.any(impulse > 0, axis=-1) | np.any(u != u_in, axis=(-1, -2))
         impact_capped = hits.get("impact_capped")
         capped = ~converged if impact_capped is None else ~converged | impact_capped
         events = hits.get("events")
@@ -201,6 +209,7 @@ class SolveContacts:
             impacts=0 if events is None else int(events.max()),
             capped=int(np.sum(capped)),
             tolerance=settings.tolerance,
+            touched=touched,
         )
         ctx.report[REPORT_KEY] = report
         if report.capped:
