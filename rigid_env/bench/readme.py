@@ -47,42 +47,18 @@ def rows_table(doc: dict) -> str:
 
 def accuracy_summary(doc: dict) -> str:
     """Observed orders and the cheapest way to each error target (the full report prints all)."""
-    from . import accuracy, report
+    from . import accuracy
 
-    orders = [
-        {"integrator": k, **v, **{f"order_{s}": o for s, o in v["by_scene"].items()}}
-        for k, v in doc["observed_order"].items()
-    ]
     return "\n".join(
         [
             "Observed order (slope of log error against log dt in the asymptotic range):",
             "",
-            report.markdown_table(
-                orders,
-                [
-                    ("integrator", "integrator", ""),
-                    ("theoretical", "theoretical", "d"),
-                    ("observed", "observed", ".2f"),
-                    ("fitted on", "observed_on", ""),
-                    *[(s, f"order_{s}", ".2f") for s in accuracy.ORDER_SCENES],
-                ],
-            ),
+            accuracy.orders_table(doc),
             "",
             "Cheapest measured integrator and dt reaching each orientation error on the "
             f"Dzhanibekov flip after {doc['duration_s']:g} s:",
             "",
-            report.markdown_table(
-                doc["targets"],
-                [
-                    ("target (rad)", "target_rad", ".0e"),
-                    ("batch", "batch", "d"),
-                    ("engine", "engine", ""),
-                    ("integrator", "integrator", ""),
-                    ("dt (s)", "dt", "g"),
-                    ("error (rad)", "error", ".2e"),
-                    ("wall s per body per simulated s", "wall_s_per_body_sim_s", ".2e"),
-                ],
-            ),
+            accuracy.targets_table(doc),
         ]
     )
 
@@ -95,22 +71,19 @@ def stability_summary(doc: dict) -> str:
 
 def speed_summary(doc: dict) -> str:
     """Body-steps per second, the targets, and the environments' step rates."""
-    from . import report, speed
+    from . import speed
 
-    full = speed.table(doc)
-    first = full.split("\n\nStage breakdown")[0]
-    envs = report.markdown_table(
-        doc["environments"],
-        [
-            ("env", "env", ""),
-            ("mode", "mode", ""),
-            ("N", "num_envs", "d"),
-            ("env steps/s", "env_steps_per_s", ".3g"),
-            ("physics share", "physics_share", ".0%"),
-        ],
-    )
+    first = speed.table(doc).split("\n\nStage breakdown")[0]
     return "\n".join(
-        [first, "", *speed.targets(doc), "", "Environment steps per second:", "", envs]
+        [
+            first,
+            "",
+            *speed.targets(doc),
+            "",
+            "Environment steps per second:",
+            "",
+            speed.env_table(doc),
+        ]
     )
 
 

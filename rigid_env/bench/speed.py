@@ -486,27 +486,26 @@ def table(result: dict) -> str:
             ],
         ),
     ]
-    envs = result["environments"]
-    out += [
-        "",
-        "Environment steps per second:",
-        "",
-        report.markdown_table(
-            envs,
-            [
-                ("env", "env", ""),
-                ("mode", "mode", ""),
-                ("N", "num_envs", "d"),
-                ("env steps/s", "env_steps_per_s", ".3g"),
-                ("physics share", "physics_share", ".0%"),
-            ],
-        ),
-    ]
+    out += ["", "Environment steps per second:", "", env_table(result)]
     out += [
         "",
         f"MuJoCo: {result['peers']}",
     ]
     return "\n".join(out)
+
+
+def env_table(result: dict) -> str:
+    """Env steps per second of every env, single and native vector, and the physics share."""
+    return report.markdown_table(
+        result["environments"],
+        [
+            ("env", "env", ""),
+            ("mode", "mode", ""),
+            ("N", "num_envs", "d"),
+            ("env steps/s", "env_steps_per_s", ".3g"),
+            ("physics share", "physics_share", ".0%"),
+        ],
+    )
 
 
 def _engine(r: dict) -> str:

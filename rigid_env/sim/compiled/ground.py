@@ -11,41 +11,24 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..shapes import Box, Polyhedron, Sphere
+from ..contacts.ground import GroundContacts
 from .layout import ARM, BODY, CONTACT, GAP, Q0, X0
 from .registry import Kernel, register
 from .rotation import quat_rotate
 
 
-def ground_data(bodies) -> tuple:
-    """(points (G, V, 3), foot heights (G,), body indices (G,), [K]) as numpy builds them."""
-    shaped = [i for i, b in enumerate(bodies) if b.shape is not None]
-    points, radii, keep = [], [], []
-    for i in shaped:
-        shape = bodies[i].shape
-        if isinstance(shape, Sphere):
-            points.append(np.zeros((1, 3)))
-            radii.append(shape.radius)
-            keep.append(1)
-        elif isinstance(shape, Box):
-            points.append(shape.vertices)
-            radii.append(0.0)
-            keep.append(4)
-        elif isinstance(shape, Polyhedron):
-            # Only vertices of its faces: a listed point no face uses is not on the body.
-            used = sorted({i for face in shape.faces for i in face})
-            points.append(np.asarray(shape.vertices, float)[used])
-            radii.append(0.0)
-            keep.append(min(len(used), 8))
-        else:
-            return None
-    n_points = max(len(p) for p in points)
-    padded = [np.concatenate([p, np.repeat(p[:1], n_points - len(p), 0)]) for p in points]
+def ground_data(bodies) -> tuple | None:
+    """(points (G, V, 3), foot heights (G,), body indices (G,), [K]) from numpy's own
+    detection set-up (one source of candidate points), or None for an unsupported shape."""
+    try:
+        ground = GroundContacts(bodies)
+    except ValueError:
+        return None
     return (
-        np.ascontiguousarray(np.stack(padded), dtype=float),
-        -np.array(radii, dtype=float),
-        np.array(shaped, dtype=np.int64),
-        np.array([max(keep)], dtype=np.int64),
+        np.ascontiguousarray(ground.points, dtype=float),
+        np.ascontiguousarray(ground.foot[:, 0, 2], dtype=float),
+        np.asarray(ground.bodies, dtype=np.int64),
+        np.array([ground.k], dtype=np.int64),
     )
 
 
