@@ -60,7 +60,7 @@ def _episodes(config, n: int, seed: int, actions: np.ndarray | None, frames: int
 
 
 def _reference_free(task, start, frames: int) -> np.ndarray:
-    times = np.arange(frames + 1) * task.action_period
+    times = np.arange(frames + 1) * task.config.action_period
     moments = np.array(task.principal_moments)
     if not np.allclose(task.body.inertia, np.diag(moments)):
         raise ValueError("the reference assumes a body with diagonal inertia")
@@ -70,7 +70,7 @@ def _reference_free(task, start, frames: int) -> np.ndarray:
 
 def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
     moments = np.diag(task.body.inertia).copy()
-    period = task.action_period
+    period = task.config.action_period
     out = []
     for i, (q0, w0) in enumerate(zip(*start, strict=True)):
         q = q0.copy()
@@ -99,7 +99,7 @@ def _exact_body_kicks(task, start, actions: np.ndarray) -> np.ndarray:
     exact free flow with body-frame half kicks (both sub-flows exact for a torque that turns
     with the body), one step per frame. Not an env configuration: a measured proposal."""
     moments = np.diag(task.body.inertia).copy()
-    h = task.action_period
+    h = task.config.action_period
     q, w0 = start
     m = moments * np.einsum("nji,nj->ni", quat_to_matrix(q), w0)
     qs = [q]
