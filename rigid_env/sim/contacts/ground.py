@@ -50,7 +50,7 @@ class GroundContacts:
         n_points = max(len(p) for p in points)
         self.k = max(keep)
         padded = [np.concatenate([p, np.repeat(p[:1], n_points - len(p), 0)]) for p in points]
-        self.points = np.stack(padded)  # (G, V, 3) body coordinates
+        self.points = np.stack(padded)[:, :, :]  # (G, V, 3) body coordinates
         self.foot = np.zeros((len(shaped), 1, 3))
         self.foot[:, 0, 2] = -np.array(radii)  # sphere: centre − r ẑ
         self.all_bodies = shaped == list(range(len(bodies)))
