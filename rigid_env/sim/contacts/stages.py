@@ -213,13 +213,18 @@ class SolveContacts:
         )
         ctx.report[REPORT_KEY] = report
         if report.capped:
-            warnings.warn(
-                "a contact solve stopped at its cap (SolverSettings.max_iterations or "
-                "max_impacts) instead of converging; scene.report['contacts'] counts the "
-                "elements per step",
-                ContactSolverWarning,
-                stacklevel=4,
-            )
+            warn_capped(stacklevel=5)  # warn_capped ← __call__ ← run ← Scene.step ← the caller
+
+
+def warn_capped(stacklevel: int) -> None:
+    """The :class:`ContactSolverWarning` of a step with a capped solve (both backends)."""
+    warnings.warn(
+        "a contact solve stopped at its cap (SolverSettings.max_iterations or "
+        "max_impacts) instead of converging; scene.report['contacts'] counts the "
+        "elements per step",
+        ContactSolverWarning,
+        stacklevel=stacklevel,
+    )
 
 
 class LimitEnergy:
