@@ -10,7 +10,7 @@ from numba import njit
 
 from ..contacts.stages import MAX_HALVINGS
 from .bodies import apply_inertia
-from .contact_assembly import F_DT, I_GRAVITY, I_K, contact_data
+from .contact_assembly import F_DT, I_GRAVITY, I_K, contact_data, unpack
 from .layout import (
     CONTACT,
     DISPLACEMENT,
@@ -82,8 +82,8 @@ def limit_energy(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass = d[:8]
-    bd, points, foot, gravity = d[11:15]
+    ints, floats, mu, eps, thr, owner, shaped, mass = unpack(d)[:8]
+    bd, points, foot, gravity = unpack(d)[11:15]
     has_gravity = ints[I_GRAVITY] != 0
     k = ints[I_K]
     dt = floats[F_DT]
@@ -179,17 +179,15 @@ def separate_contacts(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass = d[:8]
-    bd, points, foot, gravity = d[11:15]
+    ints, floats, mu, eps, thr, owner, shaped, mass = unpack(d)[:8]
+    bd, points, foot, gravity = unpack(d)[11:15]
     has_gravity = ints[I_GRAVITY] != 0
     n = st[0].shape[1]
     x = st[X][e]
     x_sub = x.copy()
     if not separate(x_sub, st[Q][e], shaped, points, foot):
         return
-    lift = potential(mass, gravity, has_gravity, x_sub) - potential(
-        mass, gravity, has_gravity, x
-    )
+    lift = potential(mass, gravity, has_gravity, x_sub) - potential(mass, gravity, has_gravity, x)
     if lift > 0:
         u = np.empty((n, 6))
         for b in range(n):

@@ -21,6 +21,7 @@ from .contact_assembly import (
     I_MAX_ITERATIONS,
     add_impulses,
     contact_data,
+    unpack,
     contact_velocity,
     delassus,
     load_velocities,
@@ -50,7 +51,7 @@ def restitute(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = d[:11]
+    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
     c = owner.shape[0]
     any_elastic = False
     for i in range(c):

@@ -21,6 +21,7 @@ from .contact_assembly import (
     I_PARTICLE,
     add_impulses,
     contact_data,
+    unpack,
     contact_velocity,
     delassus,
     load_velocities,
@@ -78,7 +79,7 @@ def solve(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = d[:11]
+    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
     dt = floats[F_DT]
     tolerance = floats[F_TOLERANCE]
     k = ints[I_K]
@@ -148,21 +149,29 @@ def report_of(tolerance: float):
     its ``ContactSolverWarning`` when a solve was capped."""
 
     def report(columns: np.ndarray) -> dict:
-        engaged = columns[:, ENGAGED] > 0
-        count = int(np.sum(engaged))
-        touched = columns[:, TOUCHED] > 0
-        if count == 0:
+        if len(columns) == 1:  # batch 1: Python floats, cheaper than five reductions
+            row = columns[0].tolist()
+            engaged, iterations, impacts = int(row[ENGAGED] > 0), row[ITERATIONS], row[IMPACTS]
+            capped, unpaid = int(row[CAPPED] > 0), row[UNPAID_ENERGY]
+            touched = np.array([row[TOUCHED] > 0])
+        else:
+            engaged = int(np.count_nonzero(columns[:, ENGAGED]))
+            peak = columns.max(axis=0)
+            iterations, impacts, unpaid = peak[ITERATIONS], peak[IMPACTS], peak[UNPAID_ENERGY]
+            capped = int(np.count_nonzero(columns[:, CAPPED]))
+            touched = columns[:, TOUCHED] > 0
+        if engaged == 0:
             return {REPORT_KEY: ContactReport(tolerance=tolerance, touched=touched)}
         out = ContactReport(
-            engaged=count,
-            iterations=int(np.max(columns[:, ITERATIONS])),
-            impacts=int(np.max(columns[:, IMPACTS])),
-            capped=int(np.sum(columns[:, CAPPED] > 0)),
+            engaged=engaged,
+            iterations=int(iterations),
+            impacts=int(impacts),
+            capped=capped,
             tolerance=tolerance,
-            unpaid_energy=float(np.max(columns[:, UNPAID_ENERGY])),
+            unpaid_energy=float(unpaid),
             touched=touched,
         )
-        if out.capped:
+        if capped:
             # warn_capped ← report ← Driver.report ← Scene._compiled_step ← Scene.step ← caller
             warn_capped(stacklevel=6)
         return {REPORT_KEY: out}
