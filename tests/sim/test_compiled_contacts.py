@@ -46,7 +46,8 @@ def scenes(backend, settings):
     box = sim.Body.box((0.1, 0.15, 0.2), 1.0)
     down = (0.0, 0.0, -G)
 
-    def make(body, gravity=down, ground=sim.Ground(0.3, 0.5)):
+    def make(body, gravity=down, ground=None):
+        ground = sim.Ground(0.3, 0.5) if ground is None else ground
         return sim.Scene(
             body, DT, gravity=gravity, ground=ground, contact_solver=settings, backend=backend
         )

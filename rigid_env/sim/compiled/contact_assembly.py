@@ -149,7 +149,7 @@ def mat9(a, b):
     return (a[b, 0], a[b, 1], a[b, 2], a[b, 3], a[b, 4], a[b, 5], a[b, 6], a[b, 7], a[b, 8])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def basis_row(t1, r):
     """Row r of the contact basis (n, t₁, t₂) of a ground contact, normal +z."""
     if r == 0:
@@ -159,7 +159,7 @@ def basis_row(t1, r):
     return cross((0.0, 0.0, 1.0), t1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def load_velocities(st, e, u):
     """u (n, 6) ← the element's working (v, ω)."""
     for b in range(u.shape[0]):
@@ -168,7 +168,7 @@ def load_velocities(st, e, u):
             u[b, 3 + i] = st[W][e, b, i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def store_velocities(st, e, u):
     for b in range(u.shape[0]):
         for i in range(3):
@@ -176,7 +176,7 @@ def store_velocities(st, e, u):
             st[W][e, b, i] = u[b, 3 + i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def contact_velocity(cs, c, b, u, r):
     """Row r (normal, t₁, t₂) of J u at contact slot row ``cs[c]`` on body b."""
     t1 = (cs[c, T1], cs[c, T1 + 1], cs[c, T1 + 2])
@@ -212,25 +212,33 @@ def add_impulses(st, e, cs, owner, lflat, rim, lam, rows, u, alpha):
     (normal, t₁, t₂ per contact) or 1 (normal only)."""
     n = u.shape[0]
     for b in range(n):
-        dz = np.zeros(6)
+        d0 = d1 = d2 = d3 = d4 = d5 = 0.0
         touched = False
         for c in range(owner.shape[0]):
             if owner[c] != b:
                 continue
             touched = True
             for r in range(rows):
-                for k in range(6):
-                    dz[k] += lam[rows * c + r] * cs[c, JT + 6 * r + k]
+                lam_r = lam[rows * c + r]
+                j = JT + 6 * r
+                d0 += lam_r * cs[c, j]
+                d1 += lam_r * cs[c, j + 1]
+                d2 += lam_r * cs[c, j + 2]
+                d3 += lam_r * cs[c, j + 3]
+                d4 += lam_r * cs[c, j + 4]
+                d5 += lam_r * cs[c, j + 5]
         if not touched:
             continue
         q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
-        dw = rotate(scale_matrix(q, lflat, b), (dz[3], dz[4], dz[5]))
+        dw = rotate(scale_matrix(q, lflat, b), (d3, d4, d5))
+        u[b, 0] += alpha * (d0 * rim[b])
+        u[b, 1] += alpha * (d1 * rim[b])
+        u[b, 2] += alpha * (d2 * rim[b])
         for i in range(3):
-            u[b, i] += alpha * (dz[i] * rim[b])
             u[b, 3 + i] += alpha * dw[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def scaled_velocity(st, e, mass, linv, u, z):
     """z (n, 6) = M^(1/2) u: √m v and L⁻¹ Rᵀ ω (``assembly.scaled_velocity``)."""
     for b in range(u.shape[0]):

@@ -16,10 +16,10 @@ from .layout import (
     DISPLACEMENT,
     ELAPSED,
     ENGAGED,
+    Q0,
     REPORT,
     U1,
     UNPAID_ENERGY,
-    Q0,
     V0,
     W0,
     X0,
@@ -32,7 +32,7 @@ from .registry import Kernel, register
 from .rotation import quat_exp, quat_multiply, quat_normalize, quat_rotate, quat_to_matrix
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def kinetic(bd, st, e, u):
     """``energy.kinetic`` at the start orientations (x₀'s q₀) of velocities u (n, 6)."""
     total = 0.0
@@ -45,7 +45,7 @@ def kinetic(bd, st, e, u):
     return total
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def potential(mass, gravity, has_gravity, x):
     """``energy.potential``: −Σ m (x · g) of positions x (n, 3)."""
     if not has_gravity:
@@ -90,10 +90,14 @@ def limit_energy(e, st, d):
     cs = st[CONTACT][e]
     disp = st[DISPLACEMENT]
     n = st[0].shape[1]
-    u0 = np.empty((n, 6))
-    u1 = np.empty((n, 6))
-    u = np.empty((n, 6))
-    x0 = np.empty((n, 3))
+    buf = np.empty(34 * n)  # one scratch allocation, carved into views
+    u0 = buf[: 6 * n].reshape((n, 6))
+    u1 = buf[6 * n : 12 * n].reshape((n, 6))
+    u = buf[12 * n : 18 * n].reshape((n, 6))
+    x0 = buf[18 * n : 21 * n].reshape((n, 3))
+    scratch = buf[21 * n : 24 * n].reshape((n, 3))
+    base = buf[24 * n : 27 * n].reshape((n, 3))
+    q_end = buf[27 * n : 31 * n].reshape((n, 4))
     for b in range(n):
         for j in range(3):
             u0[b, j] = st[V0][e, b, j]
@@ -110,14 +114,12 @@ def limit_energy(e, st, d):
     tail = dt - elapsed
     pe0 = potential(mass, gravity, has_gravity, x0)
     e_start = kinetic(bd, st, e, u0) + pe0
-    scratch = np.empty((n, 3))
     for b in range(n):
         for j in range(3):
             scratch[b, j] = x0[b, j] + dt * u1[b, j]
     e_free = kinetic(bd, st, e, u1) + potential(mass, gravity, has_gravity, scratch)
     ke = kinetic(bd, st, e, u)
     # x_end = base + f (Δt − elapsed) v, base = x₀ + translation (the path's).
-    base = np.empty((n, 3))
     for b in range(n):
         for j in range(3):
             shift = disp[e, b, j] - elapsed * u[b, j]
@@ -137,7 +139,6 @@ def limit_energy(e, st, d):
         root = (-lin + disc) / (2 * ke) if ke > 0 else 1.0
         f = min(max(root, 0.0), 1.0)
     # The separated end positions must fit as well: halve f until they do.
-    q_end = np.empty((n, 4))
     over = False
     for _ in range(MAX_HALVINGS):
         for b in range(n):

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from ..contacts.solve import NEWTON_STEPS
+
+WORK_PER_CONTACT = 9  # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep
 
 
 @njit(cache=True, error_model="numpy")
@@ -24,10 +25,8 @@ def eig2(a, b, c):
         return a, c, 1.0, 0.0, 0.0, 1.0
     tau = (c - a) / (2.0 * b)
     # tan θ of the rotation that zeroes b: the smaller root of t² + 2τt − 1 = 0.
-    if tau >= 0:
-        t = 1.0 / (tau + math.hypot(1.0, tau))
-    else:
-        t = -1.0 / (-tau + math.hypot(1.0, tau))
+    root = math.hypot(1.0, tau)
+    t = 1.0 / (tau + root) if tau >= 0 else -1.0 / (-tau + root)
     cs = 1.0 / math.sqrt(1.0 + t * t)
     sn = t * cs
     return a - t * b, c + t * b, cs, sn, -sn, cs
@@ -77,10 +76,11 @@ def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
 
 
 @njit(cache=True, error_model="numpy")
-def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance):
+def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, work):
     """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
-    budget (r = 3). Returns (sweeps, converged)."""
+    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats. Returns (sweeps,
+    converged)."""
     c = target.shape[0]
     size = r * c
     scale = 0.0
@@ -90,14 +90,14 @@ def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance):
         if math.isfinite(target[i]):
             scale = max(scale, abs(target[i]))
     scale = max(scale, 1e-300)
-    eig = np.empty((c, 6))  # e₀, e₁, Q of each A_tt
+    eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
     if r == 3:
         for i in range(c):
             j = 3 * i
             e0, e1, q00, q01, q10, q11 = eig2(a[j + 1, j + 1], a[j + 2, j + 1], a[j + 2, j + 2])
             eig[i, 0], eig[i, 1], eig[i, 2] = e0, e1, q00
             eig[i, 3], eig[i, 4], eig[i, 5] = q01, q10, q11
-    before = np.empty(size)
+    before = work[6 * c : 6 * c + size]
     for sweep in range(1, max_iterations + 1):
         for k in range(size):
             before[k] = lam[k]

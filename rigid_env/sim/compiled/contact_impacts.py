@@ -21,14 +21,14 @@ from .contact_assembly import (
     I_MAX_ITERATIONS,
     add_impulses,
     contact_data,
-    unpack,
     contact_velocity,
     delassus,
     load_velocities,
     scaled_velocity,
     store_velocities,
+    unpack,
 )
-from .contact_gauss_seidel import gauss_seidel
+from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
 from .layout import (
     CAPPED,
     CONTACT,
@@ -66,31 +66,35 @@ def restitute(e, st, d):
     cs = st[CONTACT][e]
     disp = st[DISPLACEMENT]
     n = st[0].shape[1]
-    u = np.empty((n, 6))
-    u0 = np.empty((n, 6))
+    # One scratch allocation of floats and one of flags, carved into views.
+    buf = np.empty(30 * n + 6 * c + c * c + WORK_PER_CONTACT * c)
+    u = buf[: 6 * n].reshape((n, 6))
+    u0 = buf[6 * n : 12 * n].reshape((n, 6))
+    z = buf[12 * n : 18 * n].reshape((n, 6))
+    dz = buf[18 * n : 24 * n].reshape((n, 6))
+    du = buf[24 * n : 30 * n].reshape((n, 6))
+    o = 30 * n
+    half = buf[o : o + c]
+    vn = buf[o + c : o + 2 * c]
+    tau = buf[o + 2 * c : o + 3 * c]
+    goal = buf[o + 3 * c : o + 4 * c]
+    lam = buf[o + 4 * c : o + 5 * c]
+    none = buf[o + 5 * c : o + 6 * c]
+    o += 6 * c
+    a_nn = buf[o : o + c * c].reshape((c, c))
+    work = buf[o + c * c :]
+    flags = np.zeros(3 * c, np.bool_)
+    struck, eligible, hit = flags[:c], flags[c : 2 * c], flags[2 * c :]
+    none[:] = 0.0
     for b in range(n):
         for j in range(3):
             u0[b, j] = st[V0][e, b, j]
             u0[b, 3 + j] = st[W0][e, b, j]
     load_velocities(st, e, u)
-    half = np.empty(c)  # s: the normal part of half the step's non-contact velocity change
-    for i in range(c):
+    for i in range(c):  # s: the normal part of half the step's non-contact velocity change
         vn0 = contact_velocity(cs, i, owner[i], u0, 0)
         vn1 = contact_velocity(cs, i, owner[i], u, 0)
         half[i] = 0.5 * (vn1 - vn0)
-    a_nn = np.empty((c, c))
-    delassus(cs, owner, 1, a_nn)
-    struck = np.zeros(c, np.bool_)
-    eligible = np.empty(c, np.bool_)
-    hit = np.empty(c, np.bool_)
-    vn = np.empty(c)
-    tau = np.empty(c)
-    goal = np.empty(c)
-    lam = np.empty(c)
-    none = np.zeros(c)
-    z = np.empty((n, 6))
-    dz = np.empty((n, 6))
-    du = np.empty((n, 6))
     elapsed = 0.0
     events = 0
     for _ in range(max_impacts + 1):
@@ -135,7 +139,9 @@ def restitute(e, st, d):
             if not hit[i]:
                 goal[i] = -math.inf
             lam[i] = 0.0
-        gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance)
+        if events == 0:
+            delassus(cs, owner, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
+        gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work)
         du[:] = 0.0
         add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
         scaled_velocity(st, e, mass, linv, u, z)
