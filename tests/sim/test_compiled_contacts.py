@@ -33,6 +33,7 @@ G = 9.81
 DT = 1 / 240
 SPEED = 10.0  # m/s: the largest contact velocity in these scenes (module docstring)
 STEPS = 240
+TOLERANCE = sim.SolverSettings().tolerance
 
 
 def step_bound(tolerance, sweeps):
@@ -183,3 +184,39 @@ def test_compiled_cap_is_reported_and_warned_as_numpy_does(settings):
         capped_steps += b.capped > 0
         state = ref
     assert capped_steps > 0
+
+
+CONTACT_INTEGRATORS = [name for name in sim.INTEGRATORS if name in sim.CONTACT_CAPABLE]
+
+
+@pytest.mark.parametrize("gravity", [(0.0, 0.0, -G), None])
+@pytest.mark.parametrize("integrator", CONTACT_INTEGRATORS)
+def test_every_contact_integrator_with_a_shapeless_body_matches_numpy(integrator, gravity):
+    """Three bodies, the first without a shape (no contact slots, but the energy guard and
+    the impacts' path move it too), thrown at the ground: the bound of the module docstring."""
+    free = sim.Body(2.0, np.diag([0.1, 0.2, 0.3]))
+    bodies = [free, sim.Body.box((0.1, 0.15, 0.2), 1.0), sim.Body.sphere(0.1, 1.0)]
+
+    def make(backend):
+        ground = sim.Ground(0.5, 0.4)
+        return sim.Scene(
+            bodies, DT, integrator=integrator, gravity=gravity, ground=ground, backend=backend
+        )
+
+    numpy_scene, compiled_scene = make("numpy"), make("compiled")
+    state = numpy_scene.initial_state(
+        position=[(0, 0, 2.0), (0, 0, 0.5), (0.5, 0, 0.3)],
+        linear_velocity=[(0, 0, -1), (0.5, 0, -3), (0, 0.3, -2)],
+        angular_velocity=[(1, 2, 3), (2, 1, 0), (0, 0, 1)],
+    )
+    impacts = 0
+    for _ in range(120):
+        ref, out = numpy_scene.step(state), compiled_scene.step(state)
+        a, b = numpy_scene.report["contacts"], compiled_scene.report["contacts"]
+        assert (b.engaged, b.impacts, b.capped) == (a.engaged, a.impacts, a.capped)
+        bound = step_bound(TOLERANCE, max(a.iterations, b.iterations))
+        for field in ("position", "orientation", "linear_velocity", "angular_velocity"):
+            assert np.max(np.abs(getattr(out, field) - getattr(ref, field))) <= bound
+        impacts += a.impacts
+        state = ref
+    assert impacts > 0
