@@ -237,10 +237,9 @@ class Driver:
         )
         if len(shape) != 3:
             x0, q0, v0, w0 = x0.reshape(flat), q0.reshape(qflat), v0.reshape(flat), w0.reshape(flat)
+        x0, q0, v0, w0 = _plain(x0), _plain(q0), _plain(v0), _plain(w0)
         if steps > 1:  # the start slots carry each step's result into the next: own copies
-            x0, q0, v0, w0 = (np.array(a, dtype=np.float64, order="C") for a in (x0, q0, v0, w0))
-        else:
-            x0, q0, v0, w0 = _plain(x0), _plain(q0), _plain(v0), _plain(w0)
+            x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()
         if self.slots:
             # Contact stages write the scratch: fresh zeros per call, so concurrent steps of
             # one scene (threads) cannot mix. Without contacts nothing writes it (zeros).
@@ -252,7 +251,9 @@ class Driver:
         force = zero if force is None else _load(force, shape, flat)
         torque = zero if torque is None else _load(torque, shape, flat)
         body = zero if body_torque is None else _load(body_torque, shape, flat)
-        total = np.zeros_like(report) if steps > 1 else report  # the report's running maximum
+        # The report's running maximum over several steps (without contact slots nothing
+        # writes the report: the shared zeros serve).
+        total = np.zeros_like(report) if steps > 1 and self.slots else report
         x, q, v, w = np.empty_like(x0), np.empty_like(q0), np.empty_like(v0), np.empty_like(w0)
         st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)
         if self.threads and flat[0] > 1:
