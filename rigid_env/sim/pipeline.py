@@ -1,8 +1,9 @@
 """The step pipeline: one mutable context per step, run through an ordered tuple of stages.
 
-``Scene.step(state, torque, force)`` validates its input, builds a :class:`StepContext`, runs
-``scene.pipeline`` over it (every stage in order), and returns the context's arrays as a new
-:class:`~rigid_env.sim.state.State`. ``scene.stages`` is ``tuple(s.name for s in
+``Scene.step(state, torque, force, body_torque=, steps=)`` validates its input, builds a
+:class:`StepContext`, runs ``scene.pipeline`` over it (every stage in order), and returns the
+context's arrays as a new :class:`~rigid_env.sim.state.State` (with ``steps=k``, k times, each
+step's context built from the last one's result). ``scene.stages`` is ``tuple(s.name for s in
 scene.pipeline)``: what is listed runs, nothing else does.
 
 The stage protocol (:class:`Stage`)
@@ -172,6 +173,7 @@ class StageTimer:
 
     ``seconds[name]`` sums each stage's own calls; ``seconds["validate"]`` is ``Scene.step``'s
     input checks and context set-up, ``seconds["check"]`` its finiteness check and output.
+    ``steps`` counts physics steps (a ``Scene.step(..., steps=k)`` call counts k).
     ``step_seconds`` is the wall time of whole ``Scene.step`` calls, measured by its own clock
     reads around them (so the parts can be checked against it: they are disjoint intervals
     inside it and their sum can only be smaller, by the loop's bookkeeping between them).
