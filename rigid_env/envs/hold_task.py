@@ -50,10 +50,14 @@ def step_body_torque(
     frame_skip: int,
     after: Callable[[sim.State, np.ndarray], None] | None = None,
 ) -> sim.State:
-    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque.
+    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque, one
+    simulator call each, for tasks that read the state between physics steps (BoxLanding's
+    touch switches); without that, ``HoldTask._advance`` passes the torque as ``body_torque``
+    and all the steps in one call.
 
     ``torque`` (N, 3) acts about the body's own axes, so it is rotated into the world at every
-    physics step with that step's starting orientation (one compiled call, ``kernels``).
+    physics step with that step's starting orientation (one compiled call, ``kernels``), and
+    held in the world over the step.
     ``after(state, world)``, if given, runs after every physics step and must put the next
     step's world torque (rotated by ``state``'s orientation) into ``world`` (N, 1, 3), e.g.
     while latching contact sensors in the same call. Returns the state.
@@ -248,8 +252,12 @@ class HoldTask(BatchedTask):
         scalars, fresh arrays otherwise (the cheap path of a single env's step)."""
 
     def _advance(self, torque: np.ndarray) -> None:
-        """Step the physics for one action (tasks with sensors to latch override this)."""
-        self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip)
+        """Step the physics for one action: ``frame_skip`` steps in one simulator call, the
+        torque fixed in the body frame (the integrator turns it into the world at each of its
+        load evaluations). Tasks with sensors to latch at every physics step override this."""
+        self.state = self.scene.step(
+            self.state, body_torque=torque[:, None, :], steps=self.frame_skip
+        )
 
     # --- shared ---------------------------------------------------------------------------------
 

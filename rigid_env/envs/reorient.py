@@ -15,8 +15,10 @@ target orientation and hold it there at rest.
 
 ``Box(-1, 1, (3,), float32)``: the torque about the body's own axes, as a fraction of
 ``max_torque``. Values outside [-1, 1] are clipped; NaN, infinity or a wrong shape raise
-``ValueError`` and leave the env unchanged. The torque is body-fixed: it is rotated into the
-world at every physics step.
+``ValueError`` and leave the env unchanged. The torque is body-fixed: it turns with the body
+within a physics step too, as the integrator evaluates it in the world at the orientation of
+each of its load evaluations (``Scene.step(..., body_torque=)``); the ``frame_skip`` physics
+steps of an action run in one simulator call.
 
 | Num | Action                     | Min | Max | Unit              |
 |-----|----------------------------|-----|-----|-------------------|

@@ -1,8 +1,9 @@
 """The step pipeline: one mutable context per step, run through an ordered tuple of stages.
 
-``Scene.step(state, torque, force)`` validates its input, builds a :class:`StepContext`, runs
-``scene.pipeline`` over it (every stage in order), and returns the context's arrays as a new
-:class:`~rigid_env.sim.state.State`. ``scene.stages`` is ``tuple(s.name for s in
+``Scene.step(state, torque, force, body_torque=, steps=)`` validates its input, builds a
+:class:`StepContext`, runs ``scene.pipeline`` over it (every stage in order), and returns the
+context's arrays as a new :class:`~rigid_env.sim.state.State` (with ``steps=k``, k times, each
+step's context built from the last one's result). ``scene.stages`` is ``tuple(s.name for s in
 scene.pipeline)``: what is listed runs, nothing else does.
 
 The stage protocol (:class:`Stage`)
@@ -23,11 +24,15 @@ The context (:class:`StepContext`), all arrays batch-first, ``(*batch, n_bodies,
     float64, C-contiguous, owned by the step. They start as copies of ``start`` and end as
     the returned state.
 ``applied_force, applied_torque``
-    the validated actuation (``None`` or arrays broadcastable to ``x``'s shape).
+    the validated actuation (``None`` or arrays broadcastable to ``x``'s shape), world frame.
+``body_torque``
+    the validated body-frame torque (``None`` or broadcastable to ``x``'s shape): it turns with
+    the body, so every evaluation of the wrench at an orientation q adds ``R(q) body_torque``.
 ``force, torque``
     accumulators of the total wrench on each body at the start of the step: they start as the
-    applied loads (``None`` = nothing acts, which lets a free body skip the arithmetic) and
-    each force stage adds its term with :meth:`StepContext.add_wrench`.
+    applied loads (``None`` = nothing acts, which lets a free body skip the arithmetic), plus
+    the body torque at the start orientation (added by ``Scene.step`` once it has
+    renormalised ``q``), and each force stage adds its term with :meth:`StepContext.add_wrench`.
 ``forces``
     the scene's force stages, so an integrator can re-evaluate the wrench at its own
     intermediate states with :meth:`StepContext.wrench_at` (RK4 stages, splitting half steps).
@@ -74,6 +79,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from .model import Model
+from .rotation import quat_rotate
 from .state import State
 
 
@@ -99,6 +105,7 @@ class StepContext:
         "w",
         "applied_force",
         "applied_torque",
+        "body_torque",
         "force",
         "torque",
         "forces",
@@ -116,6 +123,7 @@ class StepContext:
         force: np.ndarray | None = None,
         torque: np.ndarray | None = None,
         forces: Sequence = (),
+        body_torque: np.ndarray | None = None,
     ):
         self.model, self.dt, self.start = model, dt, state
         # Fresh float64 copies: stages may write in place without touching the caller's state.
@@ -124,6 +132,7 @@ class StepContext:
         self.v = np.array(state.linear_velocity, dtype=np.float64, order="C")
         self.w = np.array(state.angular_velocity, dtype=np.float64, order="C")
         self.applied_force, self.applied_torque = force, torque
+        self.body_torque = body_torque
         self.force, self.torque = force, torque
         self.forces = tuple(forces)
         self.contacts: Any = None
@@ -141,8 +150,12 @@ class StepContext:
             self.torque = torque if self.torque is None else self.torque + torque
 
     def wrench_at(self, x, q, v, w) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Applied loads plus every force term evaluated at (x, q, v, w)."""
+        """Applied loads plus every force term evaluated at (x, q, v, w): the world loads,
+        then the body torque turned into the world by q, then the force terms."""
         force, torque = self.applied_force, self.applied_torque
+        if self.body_torque is not None:
+            turned = quat_rotate(q, self.body_torque)
+            torque = turned if torque is None else torque + turned
         for term in self.forces:
             f, t = term.wrench(x, q, v, w)
             if f is not None:
@@ -160,6 +173,7 @@ class StageTimer:
 
     ``seconds[name]`` sums each stage's own calls; ``seconds["validate"]`` is ``Scene.step``'s
     input checks and context set-up, ``seconds["check"]`` its finiteness check and output.
+    ``steps`` counts physics steps (a ``Scene.step(..., steps=k)`` call counts k).
     ``step_seconds`` is the wall time of whole ``Scene.step`` calls, measured by its own clock
     reads around them (so the parts can be checked against it: they are disjoint intervals
     inside it and their sum can only be smaller, by the loop's bookkeeping between them).

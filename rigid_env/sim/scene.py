@@ -10,6 +10,7 @@ on the ground ``("gravity", "integrate_velocity", "collide_ground", "assemble_co
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Sequence
@@ -219,45 +220,82 @@ class Scene:
 
     # --- stepping -------------------------------------------------------------------------------
 
-    def step(self, state: State, torque=None, force=None) -> State:
-        """Advance every batch element by one ``dt``; torque and force are world-frame.
+    def step(
+        self,
+        state: State,
+        torque=None,
+        force=None,
+        *,
+        body_torque=None,
+        steps: int = 1,
+    ) -> State:
+        """Advance every batch element by ``steps`` physics steps of ``dt`` under the same loads.
 
-        ``torque``/``force`` broadcast to ``(*batch_shape, n_bodies, 3)`` and act at the centres
-        of mass for the whole step. The state passed in is never modified, and the state
-        returned shares no memory with it (float64 whatever the input's dtype).
+        ``torque``/``force`` are world-frame and held constant over each step. ``body_torque``
+        is fixed in the body frame (the axes the :class:`Body` is defined in, which
+        ``state.orientation`` maps to the world): it turns with the body, so the integrator
+        evaluates ``R(q) body_torque`` wherever it evaluates loads, at that evaluation's
+        orientation q (each RK4 stage, each kick of a splitting or exact method, an implicit
+        method's start-of-step velocity update). All three broadcast to
+        ``(*batch_shape, n_bodies, 3)`` and act at the centres of mass; they add up.
+
+        ``steps`` (a positive int) runs that many steps in one call, each exactly as a call of
+        its own would (``step(s, steps=k)`` equals k calls bit for bit) but paying the call's
+        overhead once: on the compiled backend one kernel call runs all k. A step that diverges
+        raises as a single call would, and the k steps' states are not returned.
+        ``scene.report`` is then the k steps' reports merged entry by entry into their maximum
+        (elementwise for arrays, OR for flags; see :func:`merge_reports`): an iteration count
+        is the most any step used, a count of capped solves is non-zero iff some step stopped
+        at its cap. A :class:`StageTimer` counts k steps.
+
+        The state passed in is never modified, and the state returned shares no memory with it
+        (float64 whatever the input's dtype).
         """
         timer = self.timer
         clock = time.perf_counter
         start = clock() if timer is not None else 0.0
+        if not (steps == 1 and type(steps) is int):
+            steps = _steps(steps)
         if self._driver is not None:
-            return self._compiled_step(state, torque, force, start)
+            return self._compiled_step(state, torque, force, body_torque, steps, start)
         arrays = self._arrays(state)
         shape = arrays[0].shape
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
-        ctx = StepContext(self.model, self.dt, State(*arrays), force, torque, self.forces)
-        # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is renormalised.
-        ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
-        if timer is None:
-            run(self.pipeline, ctx)
-        else:
-            mid = clock()
-            timer.add("validate", mid - start)
-            run(self.pipeline, ctx, timer)
-            mid = clock()
-        new = ctx.state()
-        if not _all_finite(new):
-            self._diagnose(arrays)
-        self.report = ctx.report
+        body_torque = _load(body_torque, "body_torque", shape)
+        reports, began = [], start
+        for _ in range(steps):
+            ctx = StepContext(
+                self.model, self.dt, State(*arrays), force, torque, self.forces, body_torque
+            )
+            # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is
+            # renormalised; the body torque acts from that orientation.
+            ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
+            if body_torque is not None:
+                ctx.add_wrench(None, quat_rotate(ctx.q, body_torque))
+            if timer is None:
+                run(self.pipeline, ctx)
+            else:
+                mid = clock()
+                timer.add("validate", mid - start)
+                run(self.pipeline, ctx, timer)
+                mid = clock()
+            new = ctx.state()
+            if not _all_finite(new):
+                self._diagnose(arrays)
+            reports.append(ctx.report)
+            arrays = new.arrays()
+            if timer is not None:
+                start = clock()
+                timer.add("check", start - mid)
+        self.report = reports[0] if steps == 1 else merge_reports(reports)
         if timer is not None:
-            end = clock()
-            timer.add("check", end - mid)
-            timer.step_seconds += end - start
-            timer.steps += 1
+            timer.step_seconds += clock() - began
+            timer.steps += steps
         return new
 
-    def _compiled_step(self, state, torque, force, start) -> State:
-        """The whole step in one kernel call over the flattened batch (``compiled.driver``).
+    def _compiled_step(self, state, torque, force, body_torque, steps, start) -> State:
+        """The ``steps`` steps in one kernel call over the flattened batch (``compiled.driver``).
 
         The common case (float64 ndarrays of the right shapes) is checked here in a few
         attribute reads; the unit-quaternion check runs in the kernel (same arithmetic as
@@ -271,10 +309,14 @@ class Scene:
         # Loads are checked for finiteness only if the step comes out non-finite (below).
         torque = _load(torque, "torque", shape, check_finite=False)
         force = _load(force, "force", shape, check_finite=False)
+        if body_torque is not None:
+            body_torque = _load(body_torque, "body_torque", shape, check_finite=False)
         if timer is not None:
             mid = time.perf_counter()
             timer.add("validate", mid - start)
-        x, q, v, w, report, (bad_orientation, diverged) = drv(*arrays, force, torque)
+        x, q, v, w, report, (bad_orientation, diverged) = drv(
+            *arrays, force, torque, body_torque, steps
+        )
         if timer is not None:
             end = time.perf_counter()
             timer.add("compiled", end - mid)
@@ -286,7 +328,8 @@ class Scene:
                 f"within {ORIENTATION_TOLERANCE:g} of 1"
             )
         if diverged:
-            for name, load in (("torque", torque), ("force", force)):
+            loads = (("torque", torque), ("force", force), ("body_torque", body_torque))
+            for name, load in loads:
                 if load is not None and not np.isfinite(load).all():
                     raise ValueError(f"{name} contains NaN or infinity")
             self._diagnose(arrays)
@@ -303,7 +346,7 @@ class Scene:
             # The total by its own later read: the parts are back to back here, and a shared
             # read could make their rounded sum exceed it.
             timer.step_seconds += time.perf_counter() - start
-            timer.steps += 1
+            timer.steps += steps
         return new
 
     def _plain_arrays(self, state):
@@ -468,6 +511,56 @@ def _load(value, name: str, shape: tuple[int, ...], check_finite: bool = True):
     if check_finite and not np.isfinite(arr).all():
         raise ValueError(f"{name} contains NaN or infinity")
     return arr
+
+
+def _steps(value) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"steps must be a positive int, got {value!r}")
+    if value < 1:
+        raise ValueError(f"steps must be a positive int, got {value!r}")
+    return int(value)
+
+
+def merge_reports(reports: Sequence[dict]) -> dict:
+    """The reports of consecutive steps as one: each entry is the maximum over the steps.
+
+    Numbers and flags take their maximum (a flag is True if it was in any step), arrays their
+    elementwise maximum (per-element flags OR'ed), dataclass values field by field, nested dicts
+    key by key; an entry missing (or ``None``) in some steps is the maximum over the others.
+    So an iteration count is the most any one step used, and a count of solves stopped at a
+    cap is positive iff some step stopped at its cap. Anything else keeps its last value.
+    """
+    merged: dict = {}
+    for report in reports:
+        for key, value in report.items():
+            merged[key] = _maximum(merged.get(key), value)
+    return merged
+
+
+def _maximum(a, b):
+    if a is None:
+        return b
+    if b is None:
+        return a
+    if isinstance(a, dict) and isinstance(b, dict):
+        return merge_reports((a, b))
+    if dataclasses.is_dataclass(a) and type(a) is type(b) and not isinstance(a, type):
+        changes = {
+            f.name: _maximum(getattr(a, f.name), getattr(b, f.name))
+            for f in dataclasses.fields(a)
+            if f.init
+        }
+        return dataclasses.replace(a, **changes)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.dtype == np.bool_ and b.dtype == np.bool_:
+            return a | b
+        return np.maximum(a, b)
+    if isinstance(a, (bool, np.bool_)) and isinstance(b, (bool, np.bool_)):
+        return bool(a or b)
+    if isinstance(a, (int, float, np.number)) and isinstance(b, (int, float, np.number)):
+        return max(a, b)
+    return b
 
 
 def _all_finite(state: State) -> bool:

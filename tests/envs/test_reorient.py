@@ -317,15 +317,39 @@ def test_zero_torque_keeps_world_angular_momentum():
 
 
 def test_torque_acts_about_body_axes():
-    # One physics step per action: the splitting adds dt · τ_world exactly (half kicks of the same
-    # world torque), with τ_world = R(q_start) · max_torque · a. Rounding: a few ulp of |L|.
+    # One physics step per action: the splitting's two half kicks add ½ dt · R(q) τ_body each,
+    # R taken at the orientation of each kick (the start and the end of the step), since the
+    # torque turns with the body; the rotation between them keeps world L. So
+    # L_end = L_start + ½ dt (R(q_start) + R(q_end)) τ_body; a torque held in the world over the
+    # step (R(q_start) twice) misses this by ~½ dt · |Ω| dt · |τ| ≈ 6e-4 here. Rounding: a few ulp.
     env = gym.make(ID, frame_skip=1, max_torque=(1.0, 2.0, 3.0))
     q = random_quaternions(np.random.default_rng(1))
     _, info = _at(env, q, omega=(0.3, -0.2, 0.5))
     a = np.array([0.5, -0.25, 1.0], np.float32)
     _, _, _, _, after = env.step(a)
-    expected = info["angular_momentum"] + 0.025 * quat_rotate(q, a * np.array([1.0, 2.0, 3.0]))
+    tau = a * np.array([1.0, 2.0, 3.0])
+    q_end = env.unwrapped.task.state.orientation[0, 0]
+    expected = info["angular_momentum"] + 0.0125 * (quat_rotate(q, tau) + quat_rotate(q_end, tau))
     assert np.abs(after["angular_momentum"] - expected).max() < 64 * EPS * np.linalg.norm(expected)
+
+
+def test_one_simulator_call_per_action():
+    # The frame_skip physics steps of an action run in one Scene.step call (steps=frame_skip),
+    # with the torque in the body frame: no per-physics-step round trip through Python.
+    env = gym.make(ID, frame_skip=4)
+    env.reset(seed=3)
+    scene = env.unwrapped.task.scene
+    calls = []
+    step = scene.step
+
+    def counting(state, *args, **kwargs):
+        calls.append(kwargs)
+        return step(state, *args, **kwargs)
+
+    scene.step = counting
+    env.step(np.array([0.5, -0.5, 0.25], np.float32))
+    assert len(calls) == 1
+    assert calls[0]["steps"] == 4 and calls[0]["body_torque"].shape == (1, 1, 3)
 
 
 def test_pickled_vector_env_continues_the_same_trajectory():

@@ -32,6 +32,8 @@ slot  name         shape               meaning (``StepContext`` field)
                                        restitution read and write
 12    report       (N, RW)             per-element figures (``ctx.report``), zero before the
                                        first stage (fresh per call)
+13    body torque  (N, n, 3)           applied body-frame torque (``ctx.body_torque``; zeros
+                                       when none given), slot ``steps.BODY_TORQUE``
 ====  ===========  ==================  ==========================================================
 
 N is the flattened batch, n the bodies of one element, C the scene's contact slots (0 without
@@ -59,7 +61,9 @@ body count n is ``st[0].shape[1]``.
 x/v/w 3-tuples, q a 4-tuple (all world frame, the state the integrator evaluates at), ``fd`` the
 term's data tuple; it returns its world force and torque on body b as 3-tuples. The driver sums
 the scene's force stages, in stage order, onto the applied load: ``wrench(b, x, q, v, w, fa,
-ta, fds) -> (f, t)`` with ``fds`` the tuple of the terms' data. Force stages are not element
+ta, tb, fds) -> (f, t)`` with ``tb`` the body-frame torque, which it turns into the world at
+q (so a body torque follows the body through every evaluation), and ``fds`` the tuple of the
+terms' data. Force stages are not element
 kernels: as in numpy, the integrator evaluates them (at the start state, and at its own
 intermediate states).
 
@@ -84,8 +88,12 @@ return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_
 add the module to ``backend.KERNEL_MODULES``.
 
 **The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
-source of a small module, ``element(e, st, data)`` = ``steps.begin`` (working state, zeroed
-scratch), each kernel in stage order with ``data[i]``, then ``steps.finite``; ``step(st, data)``
+source of a small module, ``element(e, st, data, steps, total)`` = ``steps.begin`` (working
+state, zeroed scratch), each kernel in stage order with ``data[i]``, then ``steps.finite``,
+``steps`` times (``Scene.step(..., steps=k)``; between two, ``steps.carry`` makes the result the
+next start, zeroes the contact slots and folds the report row into ``total``, so a report
+column over k steps is its maximum over them: write columns for which that is the right
+summary, as flags, counts per step and largest values are); ``step(st, data, steps, total)``
 loops over the batch (``nogil``; with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
 its parallel loop bodies accept no tuples of arrays). It

@@ -33,6 +33,7 @@ from .integrators import (  # noqa: F401 (used by the templates)
     implicit_half_kick,
     kick,
     load,
+    load_body_torque,
     matmul,
     rotate,
     solve6,
@@ -335,9 +336,9 @@ def read_back(moments, inv, qp, pi, w):
 # --- integrator templates (``splitting._strang`` with the exact rotation) ----------------------
 
 
-def exact_strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
+def exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
     """``splitting._strang(..., rotation=exact_rotation)``: half kick, exact flow, half kick."""
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     im = bd[b, INV_MASS]
     v = kick(v, 0.5 * dt, im, f)
     x = axpy(x, dt, v)
@@ -354,9 +355,9 @@ def exact_strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
     w = read_back(moments, inv, qp, pi, w)
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
     if velocity_dependent:
-        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt)
+        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
         return x, q, v, w
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     v = kick(v, 0.5 * dt, im, f)
     w = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, quat_to_matrix(q), t))
     return x, q, v, w
@@ -368,7 +369,8 @@ def exact(e, st, d):
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[0].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, dt, vdep)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, vdep)
         store(st, e, b, x, q, v, w)
 
 
@@ -378,9 +380,10 @@ def exact4(e, st, d):
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[0].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W1 * dt, vdep)
-        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W0 * dt, vdep)
-        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W1 * dt, vdep)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
+        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt, vdep)
+        x, q, v, w = exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
         store(st, e, b, x, q, v, w)
 
 

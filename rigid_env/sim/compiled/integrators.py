@@ -5,7 +5,9 @@ one-part integrator (stage ``integrate``), ``<name>_velocity`` and ``<name>_posi
 semi-implicit one (stages ``integrate_velocity`` / ``integrate_position``). Each is an element
 kernel with ``d = ((body data, [dt, velocity_dependent], spring table), force data)`` that
 updates the working state in place, as its numpy twin updates the step context; the operations
-follow the twin in order, so the two agree to rounding. A new integrator module lists its
+follow the twin in order, so the two agree to rounding. Loads are evaluated only through
+``wrench(b, x, q, v, w, fa, ta, tb, fds)``, which turns the body-frame torque ``tb`` into the
+world at the orientation it is given, as ``StepContext.wrench_at`` does. A new integrator module lists its
 templates in ``TEMPLATES`` and calls ``registry.register_integrator(name, module)``.
 """
 
@@ -51,6 +53,7 @@ from .rotation import (
     skew,
     transpose,
 )
+from .steps import BODY_TORQUE
 
 # The composed force kernel and damping matrix: defined in each generated driver module, where
 # the templates run.
@@ -89,6 +92,13 @@ def load(st, e, b):
     fa = (st[FORCE][e, b, 0], st[FORCE][e, b, 1], st[FORCE][e, b, 2])
     ta = (st[TORQUE][e, b, 0], st[TORQUE][e, b, 1], st[TORQUE][e, b, 2])
     return x, q, v, w, fa, ta
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def load_body_torque(st, e, b):
+    """The body-frame torque on body b of element e (``wrench`` turns it at each evaluation)."""
+    tb = st[BODY_TORQUE]
+    return (tb[e, b, 0], tb[e, b, 1], tb[e, b, 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -152,7 +162,8 @@ def euler_velocity(e, st, d):
     dt = prm[0]
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        f, t = wrench(b, x, q, v, w, fa, ta, fds)
+        tb = load_body_torque(st, e, b)
+        f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
         if not is_zero(f):
             v = kick(v, dt, bd[b, INV_MASS], f)
         if not is_zero(t):
@@ -211,15 +222,15 @@ def euler_quat_position(e, st, d):
 # --- rk4 --------------------------------------------------------------------------------------
 
 
-def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, start, x0, q0, v0, w0):
+def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
     """``rk4.integrate.derivative``; at the first stage (``start``) the wrench is the force
     stages' one, evaluated at the working state itself."""
     qn = quat_normalize(q)
     w = apply_inverse_inertia(bd, b, quat_to_matrix(qn), lw)
     if start:
-        f, t = wrench(b, x0, q0, v0, w0, fa, ta, fds)
+        f, t = wrench(b, x0, q0, v0, w0, fa, ta, tb, fds)
     else:
-        f, t = wrench(b, x, qn, v, w, fa, ta, fds)
+        f, t = wrench(b, x, qn, v, w, fa, ta, tb, fds)
     qd = quat_multiply((w[0], w[1], w[2], 0.0), qn)
     qdot = (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
     im = bd[b, INV_MASS]
@@ -234,8 +245,9 @@ def rk4(e, st, d):
     dt = prm[0]
     for b in range(st[X].shape[1]):
         x0, q0, v0, w0, fa, ta = load(st, e, b)
+        tb = load_body_torque(st, e, b)
         l0 = apply_inertia(bd, b, quat_to_matrix(q0), w0)
-        k1 = rk4_derivative(bd, b, fds, x0, q0, v0, l0, fa, ta, True, x0, q0, v0, w0)
+        k1 = rk4_derivative(bd, b, fds, x0, q0, v0, l0, fa, ta, tb, True, x0, q0, v0, w0)
         h = 0.5 * dt
         k2 = rk4_derivative(
             bd,
@@ -247,6 +259,7 @@ def rk4(e, st, d):
             axpy(l0, h, k1[3]),
             fa,
             ta,
+            tb,
             False,
             x0,
             q0,
@@ -263,6 +276,7 @@ def rk4(e, st, d):
             axpy(l0, h, k2[3]),
             fa,
             ta,
+            tb,
             False,
             x0,
             q0,
@@ -279,6 +293,7 @@ def rk4(e, st, d):
             axpy(l0, dt, k3[3]),
             fa,
             ta,
+            tb,
             False,
             x0,
             q0,
@@ -347,9 +362,9 @@ def free_rotation(inv, qp, pi, h):
     return (r0 / n, r1 / n, r2 / n, r3 / n), (p0, p1, p2)
 
 
-def strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
+def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
     """``splitting._strang``: half kick, drift with the exact free rotation, half kick."""
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     im = bd[b, INV_MASS]
     v = kick(v, 0.5 * dt, im, f)
     x = axpy(x, dt, v)
@@ -365,20 +380,20 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, dt, velocity_dependent):
     w = quat_rotate(qp, (pi[0] * inv[0], pi[1] * inv[1], pi[2] * inv[2]))
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
     if velocity_dependent:
-        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt)
+        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
         return x, q, v, w
-    f, t = wrench(b, x, q, v, w, fa, ta, fds)
+    f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     v = kick(v, 0.5 * dt, im, f)
     w = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, quat_to_matrix(q), t))
     return x, q, v, w
 
 
-def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, dt):
+def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     """``splitting._implicit_half_kick``: (M + ½ Δt C) u⁺ = M u + ½ Δt F(x, q, 0), one 6×6
     solve, C the sum of the velocity-dependent terms' damping matrices (``damping``, defined
     with ``wrench`` in the driver)."""
     zero = (0.0, 0.0, 0.0)
-    f0, t0 = wrench(b, x, q, zero, zero, fa, ta, fds)
+    f0, t0 = wrench(b, x, q, zero, zero, fa, ta, tb, fds)
     system = np.zeros((6, 6))
     damping(b, x, q, fds, system)
     h = 0.5 * dt
@@ -407,7 +422,8 @@ def splitting(e, st, d):
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, dt, vdep)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, vdep)
         store(st, e, b, x, q, v, w)
 
 
@@ -417,9 +433,10 @@ def splitting4(e, st, d):
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W1 * dt, vdep)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W0 * dt, vdep)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, YOSHIDA_W1 * dt, vdep)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt, vdep)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
         store(st, e, b, x, q, v, w)
 
 
@@ -472,7 +489,8 @@ def implicit_gyro_velocity(e, st, d):
     dt = prm[0]
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        f, t = wrench(b, x, q, v, w, fa, ta, fds)
+        tb = load_body_torque(st, e, b)
+        f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
         v = kick(v, dt, bd[b, INV_MASS], f)
         store_velocity(st, e, b, v, gyro_velocity(bd, b, q, w, t, dt))
 
@@ -581,7 +599,8 @@ def implicit_velocity(e, st, d):
     rhs = np.empty(6)
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
-        f, t = wrench(b, x, q, v, w, fa, ta, fds)
+        tb = load_body_torque(st, e, b)
+        f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
         rot = quat_to_matrix(q)
         inertia = matmul(matmul(rot, bodies.matrix(bd, b, bodies.INERTIA)), transpose(rot))
         momentum = rotate(inertia, w)

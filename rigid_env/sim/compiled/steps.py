@@ -1,4 +1,9 @@
-"""What every compiled step does around its stages: set up an element, check its result."""
+"""What every compiled step does around its stages: set up an element, check its result, and
+carry one step's result into the next when a call runs several.
+
+``BODY_TORQUE`` is the step tuple's slot after ``layout``'s: the body-frame torque (N, n, 3)
+that the generated ``wrench`` turns into the world at each evaluation's orientation.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,9 @@ import math
 
 from numba import njit
 
-from .layout import DISPLACEMENT, Q0, V0, W0, X0, Q, V, W, X
+from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, STEP_TUPLE_SIZE, V0, W0, X0, Q, V, W, X
+
+BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
 
 @njit(cache=True, error_model="numpy")
@@ -49,3 +56,36 @@ def finite(e, st):
             if not math.isfinite(q[e, b, i]):
                 return False
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def carry(e, st, total):
+    """Between two steps of one call: the result becomes the state passed in (the start slots
+    are the driver's own copies then), the contact slots are zeroed and the report row is
+    folded into ``total`` (elementwise maximum) and zeroed: the next step sees what a call of
+    its own would (``begin`` does the rest)."""
+    x0, q0, v0, w0 = st[X0], st[Q0], st[V0], st[W0]
+    x, q, v, w = st[X], st[Q], st[V], st[W]
+    for b in range(x.shape[1]):
+        for i in range(3):
+            x0[e, b, i] = x[e, b, i]
+            v0[e, b, i] = v[e, b, i]
+            w0[e, b, i] = w[e, b, i]
+        for i in range(4):
+            q0[e, b, i] = q[e, b, i]
+    contact = st[CONTACT]
+    for c in range(contact.shape[1]):
+        for i in range(contact.shape[2]):
+            contact[e, c, i] = 0.0
+    report = st[REPORT]
+    for i in range(report.shape[1]):
+        total[e, i] = max(total[e, i], report[e, i])
+        report[e, i] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def fold(e, st, total):
+    """After the last of several steps: the report row becomes the maximum over the steps."""
+    report = st[REPORT]
+    for i in range(report.shape[1]):
+        report[e, i] = max(total[e, i], report[e, i])
