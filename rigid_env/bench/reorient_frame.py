@@ -17,7 +17,7 @@ intermediate axis). Every configuration steps as the env does: the torque is a b
 torque (``Scene.step(..., body_torque=)``) that each integrator turns into the world at each
 of its load evaluations, ``frame_skip`` steps in one call. For comparison, the rows marked
 "held in world" step the former way: the torque turned into the world at the start of each
-physics step and held there over the step (``hold_task.step_body_torque``, one call per
+physics step and held there over the step (``step_body_torque`` below, one call per
 physics step), a first-order load error whatever the integrator.
 """
 
@@ -30,7 +30,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import rigid_env  # noqa: F401  (registers the ids)
-from rigid_env.envs.hold_task import step_body_torque
+from rigid_env import sim
+from rigid_env.envs import kernels
 from rigid_env.envs.reorient import ReorientTask
 from rigid_env.sim.rotation import quat_angle, quat_multiply, quat_to_matrix, rotate_inverse
 
@@ -46,6 +47,18 @@ CONFIGS = (
 )
 # Configurations also run with the former load model (torque held in world over each step).
 HELD = (("exact", 0.05, 1), ("splitting", 0.01, 5))
+
+
+def step_body_torque(
+    scene: sim.Scene, state: sim.State, torque: np.ndarray, frame_skip: int
+) -> sim.State:
+    """``frame_skip`` physics steps, one simulator call each, with the body torque ``torque``
+    (N, 3) turned into the world at the start of each step and held there over it."""
+    world = np.empty((torque.shape[0], 1, 3))
+    for _ in range(frame_skip):
+        kernels.world_torque(state.orientation, torque, world)
+        state = scene.step(state, torque=world)
+    return state
 
 
 class _HeldTorqueTask(ReorientTask):

@@ -66,8 +66,9 @@ The reward is their sum; each term is in ``info`` under its key (as in Gymnasium
 
 The face term is linear in θ so its pull does not fade near the goal; the spin term is small
 because turning the box in flight needs spin. A *touchdown* is an action period in which the
-box touched the ground after a period in which it did not (the touch switches are latched at
-every physics step, so a bounce shorter than a period still counts if it spans one). Every term
+box touched the ground after a period in which it did not (a touch is a contact impulse at
+any physics step of the period, or a corner within ``contact_tolerance`` at its end, so a
+bounce shorter than a period still counts if it spans one). Every term
 but the bonus is ≤ 0, so with ``terminate_on_success=True`` succeeding sooner is always better.
 
 ## Success
@@ -175,7 +176,7 @@ from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, step_body_torque
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
 
@@ -414,26 +415,26 @@ class BoxLandingTask(HoldTask):
     # --- stepping -------------------------------------------------------------------------------
 
     def _advance(self, torque: np.ndarray) -> None:
-        """Step the physics, latching the touch switches at every physics step (the lowest
-        corner within ``contact_tolerance`` of the ground), and count a touchdown when the box
-        touched the ground after a period in which it did not."""
-        touched = np.zeros(self.num_envs, dtype=bool)
-        scene = self.scene
-        tolerance, corners, latch = (
-            self.config.contact_tolerance,
-            self.corners,
-            kernels.latch_and_world_torque,
+        """Step the physics for one action (``frame_skip`` steps, the torque fixed in the body
+        frame, one simulator call) and count a touchdown when the box touched the ground during
+        this action period after a period in which it did not. The touch switches see every
+        contact that carried an impulse during the period (``ContactReport.touched``, merged
+        over its physics steps: a bounce that begins and ends within one physics step counts)
+        and a lowest corner within ``contact_tolerance`` at its end."""
+        self.state = self.scene.step(
+            self.state, body_torque=torque[:, None, :], steps=self.frame_skip
         )
-
-        def after(state: sim.State, world: np.ndarray) -> None:
-            latch(state.position, state.orientation, corners, tolerance, touched, torque, world)
-            # A bounce can begin and end within one physics step (impacts are resolved at
-            # their instant): the contact report's impulses see it when the positions do not.
-            report = scene.report.get("contacts")
-            if report is not None and report.touched is not None:
-                touched[:] |= report.touched
-
-        self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip, after)
+        touched = np.zeros(self.num_envs, dtype=bool)
+        kernels.latch_touch(
+            self.state.position,
+            self.state.orientation,
+            self.corners,
+            self.config.contact_tolerance,
+            touched,
+        )
+        report = self.scene.report.get("contacts")
+        if report is not None and report.touched is not None:
+            touched |= report.touched
         # touchdown = touched & ~touching; bounce = touchdown after an earlier one; count it.
         self._bounce = np.empty(self.num_envs, dtype=bool)
         kernels.count_touchdowns(touched, self.touching, self.touchdowns, self._bounce)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -41,36 +41,6 @@ OBS_LIMIT = 5.0  # scaled velocities in an observation are clipped to ± this
 STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # State.arrays()
 
 Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
-
-
-def step_body_torque(
-    scene: sim.Scene,
-    state: sim.State,
-    torque: np.ndarray,
-    frame_skip: int,
-    after: Callable[[sim.State, np.ndarray], None] | None = None,
-) -> sim.State:
-    """``frame_skip`` physics steps of a one-body batched scene under a body-fixed torque, one
-    simulator call each, for tasks that read the state between physics steps (BoxLanding's
-    touch switches); without that, ``HoldTask._advance`` passes the torque as ``body_torque``
-    and all the steps in one call.
-
-    ``torque`` (N, 3) acts about the body's own axes, so it is rotated into the world at every
-    physics step with that step's starting orientation (one compiled call, ``kernels``), and
-    held in the world over the step.
-    ``after(state, world)``, if given, runs after every physics step and must put the next
-    step's world torque (rotated by ``state``'s orientation) into ``world`` (N, 1, 3), e.g.
-    while latching contact sensors in the same call. Returns the state.
-    """
-    world = np.empty((torque.shape[0], 1, 3))  # read by each step, rewritten for the next
-    kernels.world_torque(state.orientation, torque, world)
-    for k in range(frame_skip):
-        state = scene.step(state, torque=world)
-        if after is not None:
-            after(state, world)
-        elif k + 1 < frame_skip:
-            kernels.world_torque(state.orientation, torque, world)
-    return state
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

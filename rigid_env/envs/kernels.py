@@ -74,12 +74,9 @@ def world_torque(q: Arr, torque: Arr, out: Arr) -> None:
 
 
 @njit(cache=True)
-def latch_and_world_torque(
-    x: Arr, q: Arr, corners: Arr, tolerance: float, touched: Arr, torque: Arr, out: Arr
-) -> None:
-    """After a physics step of the box: ``touched[e] |=`` (its lowest corner is below
-    ``tolerance``), and the next step's world torque as :func:`world_torque`. The lowest corner
-    is z + min over corners c of (R c)_z, R's last row taken from q."""
+def latch_touch(x: Arr, q: Arr, corners: Arr, tolerance: float, touched: Arr) -> None:
+    """``touched[e] |=`` (the box's lowest corner is below ``tolerance``): z + min over
+    corners c of (R c)_z, R's last row taken from q."""
     r = np.empty((3, 3))
     for e in range(q.shape[0]):
         rotation(q[e, 0], r)
@@ -89,8 +86,6 @@ def latch_and_world_torque(
             low = min(low, h)
         if x[e, 0, 2] + low < tolerance:
             touched[e] = True
-        for i in range(3):
-            out[e, 0, i] = r[i, 0] * torque[e, 0] + r[i, 1] * torque[e, 1] + r[i, 2] * torque[e, 2]
 
 
 @njit(cache=True)

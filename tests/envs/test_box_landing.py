@@ -385,7 +385,10 @@ def test_reward_is_the_documented_sum_of_terms_and_bounces_are_counted():
     rng = np.random.default_rng(4)
     touchdowns = []
     for _ in range(40):
-        a = 0.2 * rng.uniform(-1, 1, 3).astype(np.float32)
+        # Small actions (the action term is still exercised): 0.2 of the torque limit tilted
+        # the "flat" drop by ~0.1 rad before touchdown, and an edge-first landing bounces low
+        # (the contact solve resolves the edges' impacts in order).
+        a = 0.02 * rng.uniform(-1, 1, 3).astype(np.float32)
         before = env.unwrapped.task.touchdowns[0]
         _, reward, _, _, info = env.step(a)
         bounce = info["touchdowns"] > before and before > 0
