@@ -176,6 +176,19 @@ def wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120.0) -> None
         time.sleep(0.05)
 
 
+def wait_for_recorded_checkpoint(run: Path, proc: subprocess.Popen, timeout: float = 120.0):
+    """Until ``run.json`` records a checkpoint: the checkpoint file is written (atomically)
+    before the record that names it, so its mere existence is not enough."""
+    deadline = time.monotonic() + timeout
+    while True:
+        record = run / "run.json"
+        if record.exists() and json.loads(record.read_text()).get("checkpoint") is not None:
+            return
+        assert proc.poll() is None, (run.parent / "stderr.txt").read_text()
+        assert time.monotonic() < deadline, f"no checkpoint recorded in {record} after {timeout} s"
+        time.sleep(0.05)
+
+
 def test_ctrl_c_saves_a_checkpoint_that_evaluate_then_runs(tmp_path, capsys):
     proc = start_training(tmp_path, ["--checkpoint-every", "64"])
     wait_for(tmp_path / "run" / "checkpoint.zip", proc)
@@ -201,7 +214,7 @@ def test_ctrl_c_saves_a_checkpoint_that_evaluate_then_runs(tmp_path, capsys):
 
 def test_sigterm_then_ctrl_c_exits_at_once_and_leaves_whole_files(tmp_path):
     proc = start_training(tmp_path, ["--checkpoint-every", "32"])
-    wait_for(tmp_path / "run" / "checkpoint.zip", proc)
+    wait_for_recorded_checkpoint(tmp_path / "run", proc)
     # Back to back, so the second arrives while the first is still being honoured (with a pause
     # between them a fast run could finish its graceful stop first and never see a second one).
     proc.send_signal(signal.SIGTERM)

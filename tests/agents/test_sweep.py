@@ -155,8 +155,10 @@ def test_interrupted_sweep_resumes_without_rerunning_finished_trials(local_sweep
         for e in partial["configs"]
         for f in e["final"]
     }
+    # Usually a trial was running at the interrupt; on a loaded machine it may have finished
+    # while Tune was stopping, and then there is nothing to run again.
     stopped = set(local_sweep["started"]) - done
-    assert done and stopped and partial["trials_finished"] == len(done)
+    assert done and partial["trials_finished"] == len(done)
     for folder in folders(out):
         assert finished(folder) is not None
         # Finished ones were not run again, stopped ones ran again, the others ran once.
