@@ -21,6 +21,8 @@ what the env computes and is scored with the rest.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -35,7 +37,9 @@ from . import env_speed
 from .reference import torque_free_exact
 
 FRAMES = 200
-CONFIGS = (
+Config = tuple[str, float, int]  # (integrator, dt, frame_skip)
+Start = tuple[np.ndarray, np.ndarray]  # (q0, ω0 world) per episode
+CONFIGS: tuple[Config, ...] = (
     ("exact", 0.05, 1),
     ("exact4", 0.05, 1),
     ("splitting", 0.01, 5),
@@ -43,7 +47,9 @@ CONFIGS = (
 )
 
 
-def _episodes(config, n: int, seed: int, actions: np.ndarray | None, frames: int = FRAMES):
+def _episodes(
+    config: Config, n: int, seed: int, actions: np.ndarray | None, frames: int = FRAMES
+) -> tuple[np.ndarray, Start, ReorientTask]:
     """Orientation (frames + 1, n, 4), start (q0, ω0 world) and the task, for n episodes."""
     integrator, dt, skip = config
     task = ReorientTask(
@@ -59,7 +65,7 @@ def _episodes(config, n: int, seed: int, actions: np.ndarray | None, frames: int
     return np.array(q), start, task
 
 
-def _reference_free(task, start, frames: int) -> np.ndarray:
+def _reference_free(task: ReorientTask, start: Start, frames: int) -> np.ndarray:
     times = np.arange(frames + 1) * task.config.action_period
     moments = np.array(task.principal_moments)
     if not np.allclose(task.body.inertia, np.diag(moments)):
@@ -68,7 +74,7 @@ def _reference_free(task, start, frames: int) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
+def _reference_driven(task: ReorientTask, start: Start, actions: np.ndarray) -> np.ndarray:
     moments = np.diag(task.body.inertia).copy()
     period = task.config.action_period
     out = []
@@ -79,7 +85,7 @@ def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
         for k in range(actions.shape[0]):
             tau = actions[k, i] * task.max_torque  # body frame, held for the frame
 
-            def rhs(_t, y, tau=tau):
+            def rhs(_t: float, y: np.ndarray, tau: np.ndarray = tau) -> np.ndarray:
                 om = y[4:] / moments
                 dq = 0.5 * quat_multiply(y[:4] / np.linalg.norm(y[:4]), np.append(om, 0.0))
                 return np.concatenate((dq, np.cross(y[4:], om) + tau))
@@ -94,7 +100,7 @@ def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def _exact_body_kicks(task, start, actions: np.ndarray) -> np.ndarray:
+def _exact_body_kicks(task: ReorientTask, start: Start, actions: np.ndarray) -> np.ndarray:
     """What ``exact`` would give if the torque reached it in body axes: Strang splitting of the
     exact free flow with body-frame half kicks (both sub-flows exact for a torque that turns
     with the body), one step per frame. Not an env configuration: a measured proposal."""
@@ -114,7 +120,9 @@ def _exact_body_kicks(task, start, actions: np.ndarray) -> np.ndarray:
     return np.array(qs)
 
 
-def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS) -> list[dict]:
+def accuracy(
+    n: int, seed: int, frames: int = FRAMES, configs: Sequence[Config] = CONFIGS
+) -> list[dict[str, Any]]:
     rows = []
     rng = np.random.default_rng(seed + 1)
     actions = rng.uniform(-1, 1, (frames, n, 3))
@@ -150,9 +158,9 @@ def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS) -> list[d
     return rows
 
 
-def speed(config, num_envs: int, seconds: float, seed: int) -> tuple[float, float]:
+def speed(config: Config, num_envs: int, seconds: float, seed: int) -> tuple[float, float]:
     integrator, dt, skip = config
-    kwargs = dict(integrator=integrator, dt=dt, frame_skip=skip)
+    kwargs: dict[str, Any] = dict(integrator=integrator, dt=dt, frame_skip=skip)
     single = gym.make("RigidEnv/Reorient-v0", **kwargs)
     vec = gym.make_vec(
         "RigidEnv/Reorient-v0",
@@ -166,7 +174,7 @@ def speed(config, num_envs: int, seconds: float, seed: int) -> tuple[float, floa
     )
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=16)
     parser.add_argument("--num-envs", type=int, default=256)
