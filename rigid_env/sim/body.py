@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -48,9 +47,7 @@ class Body:
         return cls(props.mass, props.inertia, Sphere(float(radius)))
 
     @classmethod
-    def polyhedron(
-        cls, vertices: ArrayLike, faces: Sequence[Sequence[int]], density: float
-    ) -> Body:
+    def polyhedron(cls, vertices: ArrayLike, faces: mass_properties.Faces, density: float) -> Body:
         """A closed uniform polyhedron (Mirtich 1996); body origin moves to its centre of mass."""
         props = mass_properties.polyhedron(vertices, faces, density)
         local = np.array(vertices, dtype=float) - props.center_of_mass

@@ -22,6 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+# A polyhedron's faces: vertex-index sequences (or an integer array, one row per face).
+Faces = Sequence[Sequence[int]] | np.ndarray
+
 
 @dataclass(frozen=True, eq=False)
 class MassProperties:
@@ -72,9 +75,7 @@ def sphere(radius: float, mass: float) -> MassProperties:
     return _props(m, np.zeros(3), 0.4 * m * r * r * np.eye(3))
 
 
-def _check_polyhedron(
-    vertices: ArrayLike, faces: Sequence[Sequence[int]]
-) -> tuple[np.ndarray, list[np.ndarray]]:
+def _check_polyhedron(vertices: ArrayLike, faces: Faces) -> tuple[np.ndarray, list[np.ndarray]]:
     try:
         v = np.array(vertices, dtype=float)  # a copy: the input is never modified
     except (TypeError, ValueError):
@@ -239,9 +240,7 @@ def _volume_integrals(
     return T0, T1, T2, TP, float(scale)
 
 
-def polyhedron(
-    vertices: ArrayLike, faces: Sequence[Sequence[int]], density: float
-) -> MassProperties:
+def polyhedron(vertices: ArrayLike, faces: Faces, density: float) -> MassProperties:
     """A uniform closed polyhedron (Mirtich 1996).
 
     ``vertices`` (V, 3); ``faces`` a sequence of vertex-index lists, each a simple planar
