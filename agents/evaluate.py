@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,7 +31,10 @@ from rigid_env.files import atomic_open, write_json
 
 from . import run_folder
 from .policies import BUILTIN, make_policy
-from .rollout import make_vec, run_episodes
+from .rollout import Policy, make_vec, run_episodes
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 DEFAULT_ENV = "RigidEnv/Reorient-v0"
 DEFAULT_SEED = 1000  # the evaluation seeds agents.train uses: no training stream starts there
@@ -44,7 +49,9 @@ def trained_env(policy: str) -> str | None:
     return run_folder.read(Path(policy).parent)["env_id"]
 
 
-def load_policy(env_id: str, policy: str, seed: int = DEFAULT_SEED):
+def load_policy(
+    env_id: str, policy: str, seed: int = DEFAULT_SEED
+) -> tuple[Callable[[Any], Policy], dict[str, Any]]:
     """``(factory, env_kwargs)``: ``factory(env)`` gives the batched policy for a vector env of
     ``env_id`` built with ``env_kwargs``. A model is loaded once, and only for its own env
     (:class:`UsageError` otherwise)."""
@@ -69,7 +76,7 @@ def load_policy(env_id: str, policy: str, seed: int = DEFAULT_SEED):
     return (lambda env: lambda obs: model.predict(obs, deterministic=True)[0]), env_kwargs
 
 
-def _check_spaces(model, path: Path, env_id: str) -> None:
+def _check_spaces(model: BaseAlgorithm, path: Path, env_id: str) -> None:
     """Without run.json the env is unknown: at least the spaces must be the model's."""
     env = make_vec(env_id, 1)
     obs, act = env.single_observation_space, env.single_action_space
@@ -86,7 +93,9 @@ def _check_spaces(model, path: Path, env_id: str) -> None:
     )
 
 
-def evaluate(env_id: str, policy: str, episodes: int = DEFAULT_EPISODES, seed: int = DEFAULT_SEED):
+def evaluate(
+    env_id: str, policy: str, episodes: int = DEFAULT_EPISODES, seed: int = DEFAULT_SEED
+) -> dict[str, Any]:
     """Summary dict of ``policy`` on ``episodes`` seeded episodes of ``env_id``."""
     factory, kwargs = load_policy(env_id, policy, seed)
     result = run_episodes(env_id, factory, episodes, seed, kwargs, policy_needs_env=True)
@@ -102,11 +111,11 @@ def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SE
     env = gym.make(env_id, render_mode="rgb_array", **kwargs)
     act = factory(env)
     obs, _ = env.reset(seed=seed)
-    frames = [env.render()]
+    frames = [_rgb(env)]
     done = False
     while not done:
         obs, _, terminated, truncated, _ = env.step(act(obs[None])[0])
-        frames.append(env.render())
+        frames.append(_rgb(env))
         done = terminated or truncated
     frames += [frames[-1]] * int(env.metadata["render_fps"])  # hold the last frame for 1 s
     env.close()
@@ -120,6 +129,13 @@ def write_gif(env_id: str, policy: str, path: str | Path, seed: int = DEFAULT_SE
             f, format="GIF", save_all=True, append_images=images[1:], duration=duration_ms, loop=0
         )
     return path
+
+
+def _rgb(env: Any) -> np.ndarray:
+    frame = env.render()
+    if not isinstance(frame, np.ndarray):  # render_mode="rgb_array" gives one (H, W, 3) array
+        raise TypeError(f"{env}.render() gave {type(frame).__name__}, expected an RGB array")
+    return frame
 
 
 COLUMNS = (
@@ -174,7 +190,7 @@ def print_table(rows: list[dict], title: str | None = None) -> None:
 PROG = "python -m agents.evaluate"
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(
         prog=PROG,
         description=__doc__.split("\n")[0],

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Sequence
 
 from rigid_env import cli
 from rigid_env.files import write_json
@@ -40,7 +41,7 @@ from .train_cli import (
 PROG = "python -m agents"
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0], epilog=EXIT_CODES)
     add_training_arguments(parser)
     parser.add_argument("--episodes", type=cli.positive_int, default=DEFAULT_EPISODES)

@@ -79,7 +79,7 @@ class Plan:
     kwargs: dict  # SB3 algorithm arguments, schedules resolved
 
 
-def _count(value, name: str, minimum: int = 1, maximum: int | None = None) -> int:
+def _count(value: object, name: str, minimum: int = 1, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise UsageError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if maximum is not None and value > maximum:

@@ -13,9 +13,14 @@ import os
 import pickle
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rigid_env.cli import UsageError, writable_dir
 from rigid_env.files import remove_partials, write_json
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.vec_env import VecEnv
 
 RUN_JSON = "run.json"
 CHECKPOINT = "checkpoint.zip"
@@ -107,7 +112,7 @@ def write(run_dir: Path, record: dict) -> None:
     write_json(run_dir / RUN_JSON, record, indent=2, default=repr)
 
 
-def load_model(path: str | Path, name: str, env=None):
+def load_model(path: str | Path, name: str, env: VecEnv | None = None) -> tuple[BaseAlgorithm, str]:
     """``(model, algo)`` from an SB3 zip (on CPU; ``env`` attached if given); a file that is not
     a readable PPO or SAC model is a :class:`UsageError` naming ``name``."""
     from .plan import algo_class

@@ -42,11 +42,16 @@ import shutil
 import socket
 import sys
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from . import config
+
+if TYPE_CHECKING:
+    from ray.tune import ResultGrid
 
 SETTINGS_FILE = "sweep.json"
 RESULTS_FILE = "results.json"
@@ -64,12 +69,12 @@ LOCAL_OBJECT_STORE = 256 * 2**20  # trials exchange only small dicts: keep /dev/
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
-def parse_value(text: str):
+def parse_value(text: str) -> Any:
     """A YAML value, with ``1e-4`` read as a number (YAML 1.1 would keep it a string)."""
     return _numbers(yaml.safe_load(text))
 
 
-def _numbers(value):
+def _numbers(value: Any) -> Any:
     if isinstance(value, str) and _NUMBER.fullmatch(value):
         return float(value)
     if isinstance(value, list):
@@ -120,7 +125,7 @@ def parse_assignments(items: list[str], option: str) -> dict[str, str]:
     return out
 
 
-def check_keys(keys, env_id: str, algo: str, option: str) -> None:
+def check_keys(keys: Iterable[str], env_id: str, algo: str, option: str) -> None:
     """Every key must be a training-loop key or an argument of the SB3 algorithm; a dotted key
     must name an entry of a dict-valued one (``policy_kwargs.net_arch``)."""
     from stable_baselines3 import PPO, SAC
@@ -225,7 +230,7 @@ def make_settings(args: argparse.Namespace) -> dict:
     }
 
 
-def _encode(value):
+def _encode(value: Any) -> Any:
     """Optuna's categorical choices must be scalars: lists travel as YAML text."""
     if isinstance(value, (list, dict)):
         return yaml.safe_dump(value, default_flow_style=True).strip()
@@ -259,7 +264,7 @@ def param_space(settings: dict) -> tuple[dict, bool]:
 # ---------------------------------------------------------------- one trial (on a Ray worker)
 
 
-def _strict(obj):
+def _strict(obj: Any) -> Any:
     """NaN (no interval from one seed) as JSON null, which every JSON reader accepts."""
     if isinstance(obj, float) and obj != obj:
         return None
@@ -270,7 +275,7 @@ def _strict(obj):
     return obj
 
 
-def write_json(path: Path, obj) -> None:
+def write_json(path: Path, obj: Any) -> None:
     """Write JSON atomically: a reader sees the old file or the new one, never half of one."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -374,7 +379,7 @@ def connect(address: str | None, num_cpus: int | None) -> None:
     print(f"Ray: {len(ray.nodes())} node(s), {cpus:g} CPUs", flush=True)
 
 
-def run_tune(settings: dict, sweep_dir: Path, resume: bool):
+def run_tune(settings: dict[str, Any], sweep_dir: Path, resume: bool) -> ResultGrid:
     """Run (or resume) the trials; returns Tune's ResultGrid."""
     from ray import tune
     from ray.tune.search import Repeater
@@ -569,7 +574,7 @@ DEFAULTS = {
 }
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     address = args.address or os.environ.get("RAY_ADDRESS") or None
@@ -614,7 +619,8 @@ def main(argv=None) -> int:
         print_results(summary)
         print(f"results: {sweep_dir / RESULTS_FILE}, learning_curves.png, final_scores.png")
     if not summary["complete"]:
-        failed = [str(r.error).split("\n")[0] for r in grid if r.error is not None]
+        results = [grid[i] for i in range(len(grid))]  # ResultGrid indexes; it declares no __iter__
+        failed = [str(r.error).split("\n")[0] for r in results if r.error is not None]
         print(
             f"sweep incomplete: {summary['trials_finished']} of {expected} trials finished"
             + (f" ({len(failed)} failed: {failed[0]} ...)" if failed else "")

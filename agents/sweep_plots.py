@@ -26,7 +26,7 @@ def config_label(entry: dict) -> str:
     return ", ".join(f"{k}={_short(v)}" for k, v in sorted(config.items()))
 
 
-def _short(value) -> str:
+def _short(value: object) -> str:
     return f"{value:.3g}" if isinstance(value, float) else str(value)
 
 

@@ -32,18 +32,29 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from rigid_env import cli
 from rigid_env.cli import UsageError
+from rigid_env.envs.core import TaskVectorEnv
 from rigid_env.files import atomic_open, write_text
 from rigid_env.sim import StageTimer
 
 from . import run_folder
 from .plan import DEFAULT_ENV, DEFAULT_EVAL_SEED, Plan, algo_class, make_plan, plan_of_record
 from .rollout import make_vec, run_episodes
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from .vec_adapter import GymVectorToSB3
 
 
 @dataclass
@@ -158,6 +169,8 @@ def resume(
 
     The continuation is not bit-identical to an uninterrupted run: the environments restart
     from fresh episodes (seeded ``seed + steps done``) and PPO drops a partial rollout."""
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
     out = Path(run_dir)
     record = run_folder.read_resumable(out)
     plan = plan_of_record(record)
@@ -167,7 +180,7 @@ def resume(
         raise UsageError(f"--resume: {out / run_folder.CHECKPOINT} is not a {plan.algo} model")
     steps = int(model.num_timesteps)
     buffer = out / run_folder.REPLAY_BUFFER
-    if hasattr(model, "replay_buffer") and buffer.is_file():
+    if isinstance(model, OffPolicyAlgorithm) and buffer.is_file():  # SAC's replay buffer
         model.load_replay_buffer(buffer)
     # Also seeds the env: new episodes and streams (numpy's legacy seeds stop at 2**32).
     model.set_random_seed((plan.seed + steps) % 2**32)
@@ -199,7 +212,7 @@ def resume(
     return session.run(progress)
 
 
-def _make_env(plan: Plan):
+def _make_env(plan: Plan) -> tuple[VecMonitor, GymVectorToSB3, StageTimer]:
     """The training env: the native vector env (its simulator timed), adapted to SB3, with a
     ``VecMonitor`` whose log file is attached once the run folder is ready."""
     from stable_baselines3.common.vec_env import VecMonitor
@@ -207,7 +220,10 @@ def _make_env(plan: Plan):
     from .vec_adapter import GymVectorToSB3
 
     venv = make_vec(plan.env_id, plan.n_envs, **plan.env_kwargs)
-    task = venv.unwrapped.task
+    native = venv.unwrapped
+    if not isinstance(native, TaskVectorEnv):  # the simulator's timer is reached through its task
+        raise UsageError(f"env_id: {plan.env_id} is not a RigidEnv vector env")
+    task = native.task
     timed = task.scene.timer = StageTimer()  # the simulator's share of the wall time
     adapter = GymVectorToSB3(venv)
     return VecMonitor(adapter, info_keywords=("is_success",)), adapter, timed
@@ -220,13 +236,13 @@ class _Session:
         self,
         plan: Plan,
         out: Path,
-        env,
-        adapter,
-        timed,
-        model,
-        log,
-        stop,
-        on_evaluation,
+        env: VecMonitor,
+        adapter: GymVectorToSB3,
+        timed: StageTimer,
+        model: BaseAlgorithm,
+        log: Callable[[str], None] | None,
+        stop: Callable[[], bool] | None,
+        on_evaluation: Callable[[dict], None] | None,
         rows: list[dict] | None = None,
         best: float = -math.inf,
         analytic: dict | None = None,
@@ -255,7 +271,7 @@ class _Session:
         start = time.perf_counter()
         plan, policy = self.plan, self.model.policy
 
-        def act(obs):
+        def act(obs: np.ndarray) -> np.ndarray:
             return policy.predict(obs, deterministic=True)[0]
 
         summary = run_episodes(
@@ -481,7 +497,7 @@ def _monitor_start(path: Path, default: float) -> float:
         return default
 
 
-def _callback(session: _Session):
+def _callback(session: _Session) -> BaseCallback:
     from stable_baselines3.common.callbacks import BaseCallback
 
     plan = session.plan
@@ -491,7 +507,7 @@ def _callback(session: _Session):
         """At every vector step: stop when asked; evaluate every ``eval_freq`` env steps and
         save a checkpoint every ``checkpoint_every``; evaluate once more at the end."""
 
-        def __init__(self):
+        def __init__(self) -> None:
             super().__init__()
             self.stopped = False
             self.next_eval = last_eval + plan.eval_freq
@@ -521,7 +537,7 @@ def _callback(session: _Session):
     return RunCallback()
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """``python -m agents.train`` (see :mod:`agents.train_cli`)."""
     from .train_cli import main as cli_main
 

@@ -13,6 +13,8 @@ import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 from rigid_env import cli
 from rigid_env.cli import UsageError
@@ -29,9 +31,9 @@ class StopOnSignal:
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.requested = False
-        self._previous: dict = {}
+        self._previous: dict[int, Any] = {}  # signal -> the handler it had (signal's own type)
 
     def __call__(self) -> bool:
         return self.requested
@@ -41,11 +43,11 @@ class StopOnSignal:
             self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
 
-    def _handle(self, signum, frame) -> None:
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
         # os.write, not print: the handler may run while the main thread is inside a print.
         if self.requested:
             os.write(2, b"\nsecond interrupt: exiting now\n")

@@ -27,12 +27,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
 
 class GymVectorToSB3(VecEnv):
@@ -61,7 +61,9 @@ class GymVectorToSB3(VecEnv):
             raise ValueError("seed: give every sub-env a seed or none")
         options = self._options[0] or None
         start = time.perf_counter()
-        obs, info = self.venv.reset(seed=seeds, options=options)
+        # Gymnasium's base VectorEnv.reset is typed seed: int, but vector envs with reset_mask
+        # (Gymnasium's Sync/Async, RigidEnv's) take a list, one seed per sub-env.
+        obs, info = self.venv.reset(seed=seeds, options=options)  # type: ignore[arg-type]
         self.env_seconds += time.perf_counter() - start
         self.reset_infos = self._split(info)
         self._reset_seeds()
@@ -71,7 +73,7 @@ class GymVectorToSB3(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
-    def step_wait(self):
+    def step_wait(self) -> VecEnvStepReturn:
         start = time.perf_counter()
         obs, reward, terminated, truncated, info = self.venv.step(self._actions)
         done = terminated | truncated
@@ -94,7 +96,8 @@ class GymVectorToSB3(VecEnv):
         self.venv.close()
 
     def get_images(self) -> Sequence[np.ndarray | None]:
-        frames = self.venv.render()
+        # rgb_array frames; Gymnasium types render() with an unbound RenderFrame.
+        frames = cast("tuple[np.ndarray, ...] | None", self.venv.render())
         return list(frames) if frames is not None else [None] * self.num_envs
 
     # The sub-envs are rows of one batched env: attributes belong to the vector env as a whole.
@@ -107,12 +110,16 @@ class GymVectorToSB3(VecEnv):
             raise ValueError("indices: a batched env's attributes are shared by all sub-envs")
         setattr(self.venv, attr_name, value)
 
-    def env_method(self, method_name: str, *args, indices: VecEnvIndices = None, **kwargs):
+    def env_method(
+        self, method_name: str, *args: Any, indices: VecEnvIndices = None, **kwargs: Any
+    ) -> list[Any]:
         if indices is not None and len(list(self._get_indices(indices))) != self.num_envs:
             raise ValueError("indices: a batched env's methods act on all sub-envs at once")
         return [getattr(self.venv, method_name)(*args, **kwargs)]
 
-    def env_is_wrapped(self, wrapper_class, indices: VecEnvIndices = None) -> list[bool]:
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
 
     # --- helpers ---------------------------------------------------------------------------------

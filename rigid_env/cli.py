@@ -16,6 +16,8 @@ import tempfile
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import FrameType
+from typing import NoReturn
 
 EXIT_USAGE = 2  # as argparse
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
@@ -29,11 +31,13 @@ class UsageError(ValueError):
 class Parser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are :class:`UsageError` (one line, no usage block)."""
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         raise UsageError(f"{message} (see {self.prog} --help)")
 
 
-def run(main: Callable[[Sequence[str] | None], int | None], prog: str, argv=None) -> int:
+def run(
+    main: Callable[[Sequence[str] | None], int | None], prog: str, argv: Sequence[str] | None = None
+) -> int:
     """Call ``main(argv)``; return its exit status, 2 after a :class:`UsageError` and 130 after
     Ctrl-C or SIGTERM (raised as ``KeyboardInterrupt``, so ``finally`` blocks and atomic writes
     clean up), each reported in one line on stderr."""
@@ -52,7 +56,7 @@ def run(main: Callable[[Sequence[str] | None], int | None], prog: str, argv=None
             signal.signal(signal.SIGTERM, previous)
 
 
-def _raise_interrupt(signum, frame):
+def _raise_interrupt(signum: int, frame: FrameType | None) -> NoReturn:
     raise KeyboardInterrupt
 
 

@@ -46,7 +46,7 @@ def write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
-def write_json(path: str | Path, obj, **dumps_kwargs) -> Path:
+def write_json(path: str | Path, obj: Any, **dumps_kwargs: Any) -> Path:
     return write_text(path, json.dumps(obj, **dumps_kwargs) + "\n")
 
 

@@ -12,7 +12,9 @@ from __future__ import annotations
 import importlib
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from .. import cli
 from . import report
@@ -21,7 +23,9 @@ COMMANDS = ("accuracy", "stability", "speed")
 PROG = "python -m rigid_env.bench"
 
 
-def run_command(command: str, preset: str, out: Path, progress=None) -> tuple[dict, str]:
+def run_command(
+    command: str, preset: str, out: Path, progress: report.Progress | None = None
+) -> tuple[dict[str, Any], str]:
     module = importlib.import_module(f"rigid_env.bench.{command}")
     start = time.perf_counter()
     result = module.measure(preset, progress=progress)
@@ -31,7 +35,7 @@ def run_command(command: str, preset: str, out: Path, progress=None) -> tuple[di
     return result, module.table(result)
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument("command", choices=(*COMMANDS, "all"))
     parser.add_argument("--quick", action="store_true", help="each command in under a minute")

@@ -22,6 +22,9 @@ in the asymptotic range: above the rounding floor and below ``ASYMPTOTIC_MAX``.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -37,9 +40,19 @@ ASYMPTOTIC_MAX = 1e-2  # above this the leading error term does not yet dominate
 # truncation (Hairer, Lubich & Wanner, "Geometric Numerical Integration", §VIII.5).
 ROUNDING_PER_STEP = 100 * np.finfo(float).eps
 
-# dt sweeps per preset: (duration s, checkpoints, dts for order-1/2 methods, dts for order 4,
-# steps timed at batch 1024). High-order methods need larger dt to stay above rounding.
-PRESETS = {
+
+class Preset(TypedDict):
+    """A dt sweep: run length (s), checkpoints, dts by theoretical order, steps timed at batch
+    1024, dts of the first-bounce runs. High-order methods need larger dt to stay above rounding."""
+
+    duration: float
+    checkpoints: int
+    dts: dict[int, tuple[float, ...]]
+    batch_steps: int
+    bounce_dts: tuple[float, ...]
+
+
+PRESETS: dict[str, Preset] = {
     "full": dict(
         duration=20.0,
         checkpoints=20,
@@ -70,7 +83,9 @@ BATCH = 1024
 ORDER_SCENES = ("dzhanibekov", "symmetric_top", "damped_spring", "spin_up")
 
 
-def _reference_state(scene: sim.Scene, initial: dict, ref: dict) -> sim.State:
+def _reference_state(
+    scene: sim.Scene, initial: dict[str, Any], ref: dict[str, np.ndarray]
+) -> sim.State:
     """The reference as a State (T, 1 body); fields the reference omits keep initial values."""
     names = ("position", "orientation", "linear_velocity", "angular_velocity")
     fields = {k: initial.get(k) if k not in ref else np.asarray(ref[k])[:, None, :] for k in names}
@@ -79,7 +94,7 @@ def _reference_state(scene: sim.Scene, initial: dict, ref: dict) -> sim.State:
 
 def run(
     problem: problems.Problem, integrator: str, dt: float, duration: float, checkpoints: int
-) -> dict:
+) -> dict[str, Any]:
     """One scored batch-1 run; returns the error figures and the batch-1 wall time."""
     scene = problem.build(integrator, dt)
     n_steps = int(round(duration / dt))
@@ -141,7 +156,9 @@ def batch_wall(
     return best / (steps * dt)
 
 
-def observed_order(dts, errors, duration: float | None = None) -> float | None:
+def observed_order(
+    dts: Sequence[float], errors: Sequence[float | None], duration: float | None = None
+) -> float | None:
     """Slope of log error vs log dt over the asymptotic points (None if fewer than two).
 
     With ``duration`` a point counts only above the rounding accumulated over its steps.
@@ -159,16 +176,22 @@ def observed_order(dts, errors, duration: float | None = None) -> float | None:
     return float(np.polyfit(x, y, 1)[0])
 
 
-def measure(preset: str = "full", integrators=None, problem_list=None, progress=None) -> dict:
+def measure(
+    preset: str = "full",
+    integrators: Sequence[str] | None = None,
+    problem_list: Sequence[problems.Problem] | None = None,
+    progress: report.Progress | None = None,
+) -> dict[str, Any]:
     """Every (problem, integrator, dt) record, observed orders and the target table."""
     cfg = PRESETS[preset]
     integrators = tuple(integrators or sim.INTEGRATORS)
     problem_list = problem_list or problems.all_problems()
-    records, orders = [], {}
+    records: list[dict[str, Any]] = []
+    orders: dict[str, dict[str, float | None]] = {}
     for problem in problem_list:
         for integrator in integrators:
             dts = cfg["dts"][THEORETICAL_ORDER.get(integrator, 1)]
-            errors = []
+            errors: list[float | None] = []
             for dt in dts:
                 if progress:
                     progress(f"accuracy {problem.name} {integrator} dt={dt}")
@@ -189,7 +212,7 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             orders.setdefault(integrator, {})[problem.name] = observed_order(
                 dts, errors, cfg["duration"]
             )
-    summary = {}
+    summary: dict[str, dict[str, Any]] = {}
     for name, per in orders.items():
         # Prefer the Dzhanibekov problem: it exercises every term of the free rotation; on
         # others some methods are exact (Verlet on a constant torque) or leave the asymptotic
@@ -197,7 +220,7 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
         scene = next((s for s in ORDER_SCENES if per.get(s) is not None), None)
         summary[name] = {
             "theoretical": THEORETICAL_ORDER.get(name),
-            "observed": per.get(scene),
+            "observed": None if scene is None else per[scene],
             "observed_on": scene,
             "by_scene": per,
         }
@@ -210,7 +233,7 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
             name,
             {"theoretical": THEORETICAL_ORDER.get(name), "observed": None, "observed_on": None},
         ).setdefault("by_scene", {}).update(per)
-    peer_orders = {}
+    peer_orders: dict[str, dict[str, float | None]] = {}
     if peers.available():
         if progress:
             progress("accuracy MuJoCo first bounce")
@@ -252,14 +275,17 @@ def measure(preset: str = "full", integrators=None, problem_list=None, progress=
     }
 
 
-def measure_bounce(dts, batch_steps: int, progress=None) -> tuple[list[dict], dict]:
+def measure_bounce(
+    dts: Sequence[float], batch_steps: int, progress: report.Progress | None = None
+) -> tuple[list[dict[str, Any]], dict[str, dict[str, float | None]]]:
     """The landing scene's first bounce (:mod:`bounce`) for every contact-capable integrator:
     post-bounce velocity and angular-momentum errors against the impulse closed form."""
-    records, orders = [], {}
+    records: list[dict[str, Any]] = []
+    orders: dict[str, dict[str, float | None]] = {}
     for drop in bounce.drops():
         scene = f"first_bounce_{drop.name}"
         for integrator in bounce.integrators():
-            errors = []
+            errors: list[float | None] = []
             for dt in dts:
                 if progress:
                     progress(f"accuracy {scene} {integrator} dt={dt:.3g}")
@@ -282,7 +308,9 @@ def measure_bounce(dts, batch_steps: int, progress=None) -> tuple[list[dict], di
     return records, orders
 
 
-def cheapest_for_targets(records, scene: str, targets=TARGETS) -> list[dict]:
+def cheapest_for_targets(
+    records: list[dict[str, Any]], scene: str, targets: Sequence[float] = TARGETS
+) -> list[dict[str, Any]]:
     """For each target error and batch size (1, 1024), the measured (engine, integrator, dt)
     reaching it at least wall time per simulated second per body."""
     rows = []
@@ -313,7 +341,7 @@ def cheapest_for_targets(records, scene: str, targets=TARGETS) -> list[dict]:
 # --- output ------------------------------------------------------------------------------------
 
 
-def targets_table(result: dict) -> str:
+def targets_table(result: dict[str, Any]) -> str:
     """The cheapest measured (engine, integrator, dt) reaching each orientation error."""
     return report.markdown_table(
         result["targets"],
@@ -330,7 +358,7 @@ def targets_table(result: dict) -> str:
     )
 
 
-def orders_table(result: dict) -> str:
+def orders_table(result: dict[str, Any]) -> str:
     """Theoretical and observed order of every integrator, overall and per problem."""
     orders = [
         {"integrator": k, **v, **{f"order_{s}": o for s, o in v["by_scene"].items()}}
@@ -348,7 +376,7 @@ def orders_table(result: dict) -> str:
     )
 
 
-def table(result: dict) -> str:
+def table(result: dict[str, Any]) -> str:
     out = [
         "Cheapest measured integrator and dt reaching each orientation error on the "
         f"Dzhanibekov problem after {result['duration_s']:g} s, at batch 1 and batch {BATCH}:",
@@ -381,7 +409,7 @@ def table(result: dict) -> str:
     return "\n".join(out)
 
 
-def first_bounce_table(result: dict) -> str:
+def first_bounce_table(result: dict[str, Any]) -> str:
     rows = [
         {**r, "dt_inv": 1 / r["dt"]}
         for r in result["records"]
@@ -414,7 +442,7 @@ def first_bounce_table(result: dict) -> str:
     )
 
 
-def plot(result: dict, path) -> None:
+def plot(result: dict[str, Any], path: Path) -> None:
     """Error against batch-1 run time, log–log, one panel per problem, one line per method."""
     records = [r for r in result["records"] if r["batch"] == 1 and r.get("error")]
     scenes = list(dict.fromkeys(r["scene"] for r in records))

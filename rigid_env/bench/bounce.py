@@ -23,8 +23,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from rigid_env import sim
 from rigid_env.sim.rotation import quat_exp, quat_rotate, quat_to_matrix
@@ -41,7 +43,7 @@ HEIGHT = 1.0
 @dataclass(frozen=True)
 class Drop:
     name: str
-    orientation: tuple  # (x, y, z, w), constant during the fall
+    orientation: tuple[float, ...]  # (x, y, z, w), constant during the fall
     height: float = HEIGHT
     restitution: float = RESTITUTION
 
@@ -65,13 +67,13 @@ def scene(integrator: str, dt: float, restitution: float = RESTITUTION) -> sim.S
     )
 
 
-def _corners(q) -> np.ndarray:
+def _corners(q: ArrayLike) -> np.ndarray:
     """World arms of the eight corners at orientation(s) q, (..., 8, 3)."""
     return quat_rotate(np.asarray(q)[..., None, :], body().shape.vertices)
 
 
 @lru_cache(maxsize=512)  # every integrator of a sweep asks for the same drops
-def closed_form(drop: Drop, g: float = GRAVITY) -> dict:
+def closed_form(drop: Drop, g: float = GRAVITY) -> dict[str, Any]:
     """Impact time, pre/post-impact velocities and angular momentum, start and check times."""
     b = body()
     q = np.asarray(drop.orientation, float)
@@ -111,7 +113,9 @@ def closed_form(drop: Drop, g: float = GRAVITY) -> dict:
     }
 
 
-def _clear_time(b, q, w_plus, v_plus, z_hit, g) -> float:
+def _clear_time(
+    b: sim.Body, q: np.ndarray, w_plus: np.ndarray, v_plus: np.ndarray, z_hit: float, g: float
+) -> float:
     """Half the time until a corner next comes within 1 mm of the ground (exact flight), or
     half the time to the apex if that comes first: a safe check time after the bounce."""
     apex = v_plus[2] / g
@@ -138,7 +142,9 @@ def heights(drop: Drop, dt: float, phases: int = PHASES) -> np.ndarray:
     return 0.5 * GRAVITY * t_hit**2
 
 
-def initial_state(sc: sim.Scene, drop: Drop, forms: list[dict], batch: int | None = None):
+def initial_state(
+    sc: sim.Scene, drop: Drop, forms: list[dict[str, Any]], batch: int | None = None
+) -> sim.State:
     z0 = np.array([cf["z0"] for cf in forms])
     if batch is not None:  # identical copies of the first drop, for timing
         z0 = np.full(batch, z0[0])
@@ -147,7 +153,7 @@ def initial_state(sc: sim.Scene, drop: Drop, forms: list[dict], batch: int | Non
     return sc.initial_state(position=position, orientation=drop.orientation)
 
 
-def run(drop: Drop, integrator: str, dt: float, phases: int = PHASES) -> dict:
+def run(drop: Drop, integrator: str, dt: float, phases: int = PHASES) -> dict[str, Any]:
     """Simulate a batch of drops (impact phases spread over one step) past the bounce; the
     worst error over the batch of the post-bounce state against each drop's closed form."""
     forms = [
@@ -174,6 +180,7 @@ def run(drop: Drop, integrator: str, dt: float, phases: int = PHASES) -> dict:
         if k == n_check:
             checked = state
         top = np.where(hit_step > 0, np.maximum(top, state.position[:, 0, 2]), top)
+    assert checked is not None  # steps >= n_check >= 1, so the loop passed the check step
     t = n_check * dt
     up = np.array([0.0, 0.0, 1.0])
     v_ref = np.stack([cf["v_plus"] - GRAVITY * (t - cf["t_hit"]) * up for cf in forms])
@@ -181,14 +188,16 @@ def run(drop: Drop, integrator: str, dt: float, phases: int = PHASES) -> dict:
     speed = np.array([np.linalg.norm(cf["v_minus"]) for cf in forms])
     arm = np.linalg.norm(forms[0]["arm"])
     L = sc.angular_momentum(checked, about=checked.position)
-    out = {
+    velocity_error = float(
+        np.max(np.linalg.norm(checked.linear_velocity[:, 0] - v_ref, axis=-1) / speed)
+    )
+    momentum_error = float(np.max(np.linalg.norm(L - l_ref, axis=-1) / (arm * MASS * speed)))
+    out: dict[str, Any] = {
         "impact_time_error": float(np.max(np.abs(hit_step * dt - t_hit)))
         if np.all(hit_step > 0)
         else None,
-        "velocity_error": float(
-            np.max(np.linalg.norm(checked.linear_velocity[:, 0] - v_ref, axis=-1) / speed)
-        ),
-        "momentum_error": float(np.max(np.linalg.norm(L - l_ref, axis=-1) / (arm * MASS * speed))),
+        "velocity_error": velocity_error,
+        "momentum_error": momentum_error,
         "check_time_after_impact_s": float(t - t_hit.max()),
         "phases": phases,
         "steps": steps,
@@ -198,7 +207,7 @@ def run(drop: Drop, integrator: str, dt: float, phases: int = PHASES) -> dict:
         rise = top - HALF_EXTENTS[2]
         want = drop.restitution**2 * np.array([cf["t_hit"] ** 2 * GRAVITY / 2 for cf in forms])
         out["apex_error"] = float(np.max(np.abs(rise - want) / want))
-    out["error"] = max(out["velocity_error"], out["momentum_error"])
+    out["error"] = max(velocity_error, momentum_error)
     return out
 
 

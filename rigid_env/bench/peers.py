@@ -9,12 +9,23 @@ i.e. single-threaded, into a preallocated output array. MuJoCo's free-joint quat
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from rigid_env.sim.rotation import quat_angle, quat_rotate
 
 from . import scenes
+
+if TYPE_CHECKING:
+    from .bounce import Drop
+    from .problems import Problem
+    from .report import Progress
+
+# mujoco.MjModel: MuJoCo ships no type information, so its objects are Any to the checker.
+MjModel = Any
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 THEORETICAL_ORDER = {"Euler": 1, "RK4": 4, "implicit": 1, "implicitfast": 1}
@@ -41,7 +52,7 @@ def status() -> str:
     return f"MuJoCo {mujoco.__version__}, mujoco.rollout single-thread"
 
 
-def free_body_model(integrator: str, dt: float):
+def free_body_model(integrator: str, dt: float) -> MjModel:
     moments = np.diag(scenes.box().inertia)
     xml = f"""<mujoco><option gravity="0 0 0" timestep="{dt:.17g}" integrator="{integrator}"/>
       <worldbody><body><freejoint/>
@@ -50,7 +61,9 @@ def free_body_model(integrator: str, dt: float):
     return mujoco.MjModel.from_xml_string(xml)
 
 
-def initial_state(model, omega_world, q=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
+def initial_state(
+    model: MjModel, omega_world: ArrayLike, q: ArrayLike = (0.0, 0.0, 0.0, 1.0)
+) -> np.ndarray:
     """Full physics state vector with the rigid_env orientation q (x, y, z, w) and world ω."""
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     data = mujoco.MjData(model)
@@ -62,7 +75,9 @@ def initial_state(model, omega_world, q=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
     return state
 
 
-def _run(model, init: np.ndarray, nstep: int, batch: int, out=None) -> tuple[np.ndarray, float]:
+def _run(
+    model: MjModel, init: np.ndarray, nstep: int, batch: int, out: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     data = mujoco.MjData(model)
     init = np.tile(init, (batch, 1))
     out = np.empty((batch, nstep, init.shape[1])) if out is None else out
@@ -71,7 +86,9 @@ def _run(model, init: np.ndarray, nstep: int, batch: int, out=None) -> tuple[np.
     return out, time.perf_counter() - start
 
 
-def speed(batches, block_s: float, dt: float, progress=None) -> list[dict]:
+def speed(
+    batches: Sequence[int], block_s: float, dt: float, progress: Progress | None = None
+) -> list[dict[str, Any]]:
     """Body-steps per second of MuJoCo's integrators on the tumbling free body."""
     records = []
     for integrator in INTEGRATORS:
@@ -100,8 +117,12 @@ def speed(batches, block_s: float, dt: float, progress=None) -> list[dict]:
 
 
 def accuracy(
-    problem, dts_by_order: dict, duration: float, checkpoints: int, batch: int
-) -> list[dict]:
+    problem: Problem,
+    dts_by_order: Mapping[int, Sequence[float]],
+    duration: float,
+    checkpoints: int,
+    batch: int,
+) -> list[dict[str, Any]]:
     """MuJoCo's errors on a torque-free problem, scored like rigid_env's (max over checkpoints)."""
     omega = np.asarray(problem.initial["angular_velocity"], float)
     records = []
@@ -155,10 +176,10 @@ def landing_model(
     integrator: str,
     dt: float,
     restitution: float,
-    half_extents,
+    half_extents: Sequence[float],
     mass: float,
     friction: float = 0.0,
-):
+) -> MjModel:
     """The bounce box on a plane: frictionless (condim 1) soft contact, solref (τ, ζ(ε)).
 
     MuJoCo's contact is a damped spring of natural frequency ≈ 1/(τζ) (MuJoCo docs,
@@ -183,7 +204,9 @@ def landing_model(
     return mujoco.MjModel.from_xml_string(xml)
 
 
-def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
+def bounce_accuracy(
+    drops: Sequence[Drop], dts: Sequence[float], batch: int, batch_steps: int
+) -> list[dict[str, Any]]:
     """MuJoCo's first bounce, scored like rigid_env's (:mod:`rigid_env.bench.bounce`): the
     same drops (impact phases spread over a step), errors at the same check time."""
     from . import bounce
@@ -264,7 +287,13 @@ def bounce_accuracy(drops, dts, batch: int, batch_steps: int) -> list[dict]:
     return records
 
 
-def _state_at(model, position, q, vz: float = 0.0, omega_world=None) -> np.ndarray:
+def _state_at(
+    model: MjModel,
+    position: ArrayLike,
+    q: ArrayLike,
+    vz: float = 0.0,
+    omega_world: ArrayLike | None = None,
+) -> np.ndarray:
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     data = mujoco.MjData(model)
     q = np.asarray(q, float)
@@ -278,7 +307,9 @@ def _state_at(model, position, q, vz: float = 0.0, omega_world=None) -> np.ndarr
     return state
 
 
-def landing_speed(batches, block_s: float, dt: float, progress=None) -> list[dict]:
+def landing_speed(
+    batches: Sequence[int], block_s: float, dt: float, progress: Progress | None = None
+) -> list[dict[str, Any]]:
     """Body-steps per second of MuJoCo on rigid_env's landing scene: the same box (1 kg, half
     extents 0.1, 0.15, 0.2 m), restitution 0.3 and friction 0.5, dropped from 1 m with the
     same random tilts and spins, timed after the same 1 s pre-roll (boxes on the ground)."""
@@ -327,7 +358,7 @@ def landing_speed(batches, block_s: float, dt: float, progress=None) -> list[dic
     return records
 
 
-def _timed_rollout(model, inits, nstep):
+def _timed_rollout(model: MjModel, inits: np.ndarray, nstep: int) -> tuple[np.ndarray, float]:
     out = np.empty((inits.shape[0], nstep, inits.shape[1]))
     start = time.perf_counter()
     _rollout.rollout(model, mujoco.MjData(model), inits, nstep=nstep, state=out)

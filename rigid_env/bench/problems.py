@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -21,12 +22,12 @@ from . import reference, scenes
 class Problem:
     name: str
     build: Callable[[str, float], sim.Scene]  # (integrator, dt) -> Scene
-    initial: dict  # keyword arguments of Scene.initial_state
-    reference: Callable[[np.ndarray], dict]
+    initial: dict[str, Any]  # keyword arguments of Scene.initial_state
+    reference: Callable[[np.ndarray], dict[str, np.ndarray]]
     main_error: str  # "orientation" (rad) or "position" (m): the figure plotted and fitted
     torque: np.ndarray | None = None
     note: str = ""
-    tags: tuple = field(default=())
+    tags: tuple[str, ...] = field(default=())
 
 
 def dzhanibekov() -> Problem:
@@ -36,7 +37,7 @@ def dzhanibekov() -> Problem:
     omega = np.array(scenes.DZHANIBEKOV_OMEGA)
     q0 = np.array([0.0, 0.0, 0.0, 1.0])
 
-    def ref(times):
+    def ref(times: np.ndarray) -> dict[str, np.ndarray]:
         q, w = reference.torque_free_exact(moments, q0, omega, times)
         return {"orientation": q, "angular_velocity": w}
 
@@ -57,7 +58,7 @@ def symmetric_top() -> Problem:
     omega = np.array([1.0, 0.0, 5.0])
     q0 = np.array([0.0, 0.0, 0.0, 1.0])
 
-    def ref(times):
+    def ref(times: np.ndarray) -> dict[str, np.ndarray]:
         q, w = reference.symmetric_top(i_perp, i_axis, q0, omega, times)
         return {"orientation": q, "angular_velocity": w}
 
@@ -77,7 +78,7 @@ def spin_up() -> Problem:
     moments = np.diag(body.inertia).copy()
     torque = np.array([0.0, 0.05, 0.0])
 
-    def ref(times):
+    def ref(times: np.ndarray) -> dict[str, np.ndarray]:
         q, w = reference.spin_up(moments, 1, torque[1], times)
         return {"orientation": q, "angular_velocity": w}
 
@@ -97,7 +98,7 @@ def damped_spring() -> Problem:
     mass, stiffness, damping = 1.0, 40.0, 0.4
     x0 = np.array([0.1, 0.0, 0.0])
 
-    def ref(times):
+    def ref(times: np.ndarray) -> dict[str, np.ndarray]:
         x, v = reference.damped_spring(mass, stiffness, damping, x0, np.zeros(3), times)
         return {"position": x, "linear_velocity": v}
 

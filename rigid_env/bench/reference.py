@@ -19,7 +19,10 @@ returns arrays with the time axis first.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipkinc
 
@@ -38,7 +41,7 @@ from rigid_env.sim.rotation import (
 # --- torque-free rigid body: ODE reference ----------------------------------------------------
 
 
-def _as_times(times) -> np.ndarray:
+def _as_times(times: ArrayLike) -> np.ndarray:
     times = np.atleast_1d(np.asarray(times, dtype=float))
     if times.ndim != 1:
         raise ValueError("times must be a 1-D array")
@@ -46,7 +49,12 @@ def _as_times(times) -> np.ndarray:
 
 
 def torque_free_dop853(
-    inertia_diag, q0, omega0_world, times, rtol: float = 1e-13, atol: float = 1e-13
+    inertia_diag: ArrayLike,
+    q0: ArrayLike,
+    omega0_world: ArrayLike,
+    times: ArrayLike,
+    rtol: float = 1e-13,
+    atol: float = 1e-13,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Torque-free body integrated by DOP853 on the state (q, Π = I Ω).
 
@@ -61,7 +69,7 @@ def torque_free_dop853(
         raise ValueError("torque_free_dop853 integrates forward from t = 0 only")
     pi0 = inertia * rotate_inverse(quat_to_matrix(q0), np.asarray(omega0_world, dtype=float))
 
-    def rhs(_t, y):
+    def rhs(_t: float, y: np.ndarray) -> np.ndarray:
         q, pi = y[:4], y[4:]
         omega_body = pi / inertia
         # Euler: Π̇ = Π × Ω. Kinematics: q̇ = ½ (ω, 0) ∘ q = ½ q ∘ (Ω, 0), which needs no R(q)
@@ -118,7 +126,7 @@ class _JacobiSolution:
     precision (forming M² and 2E first would lose ~|M²| / |M² - 2EI2| in all of them).
     """
 
-    def __init__(self, inertia_diag, omega0_body):
+    def __init__(self, inertia_diag: ArrayLike, omega0_body: ArrayLike) -> None:
         inertia = np.asarray(inertia_diag, dtype=float)
         omega0 = np.asarray(omega0_body, dtype=float)
         order = np.argsort(inertia, kind="stable")
@@ -169,7 +177,7 @@ class _JacobiSolution:
             tau0 = tau0 + (phi0 - ph) / dn
         self.tau0 = float(tau0)
 
-    def __call__(self, times) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, times: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Sorted-frame Ω (T, 3) and the Jacobi amplitude am(τ) (T,), continuous in t."""
         times = _as_times(times)
         if self.constant:
@@ -177,7 +185,7 @@ class _JacobiSolution:
         sn, cn, dn, ph = ellipj(self.rate * times + self.tau0, self.m)
         return self.from_elliptic(sn, cn, dn), ph
 
-    def from_elliptic(self, sn, cn, dn) -> np.ndarray:
+    def from_elliptic(self, sn: np.ndarray, cn: np.ndarray, dn: np.ndarray) -> np.ndarray:
         """Sorted-frame Ω at given values of (sn, cn, dn)."""
         s = np.empty((np.size(sn), 3))
         s[:, self.c] = self.amp[self.c] * cn
@@ -185,12 +193,14 @@ class _JacobiSolution:
         s[:, self.d] = self.sign * self.amp[self.d] * dn
         return s
 
-    def body(self, times) -> np.ndarray:
+    def body(self, times: ArrayLike) -> np.ndarray:
         """Ω in the caller's body frame, Ω = Q1ᵀ s."""
         return self(times)[0] @ self.q1
 
 
-def torque_free_jacobi(inertia_diag, omega0_body, times) -> np.ndarray:
+def torque_free_jacobi(
+    inertia_diag: ArrayLike, omega0_body: ArrayLike, times: ArrayLike
+) -> np.ndarray:
     """Exact body-frame angular velocity (T, 3) of the torque-free body (L&L §37).
 
     Any positive principal moments, in any order (ties included); any ``times`` (negative too).
@@ -204,7 +214,9 @@ def torque_free_jacobi(inertia_diag, omega0_body, times) -> np.ndarray:
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
 
-def _cumulative_integral(f, times: np.ndarray, step: float) -> np.ndarray:
+def _cumulative_integral(
+    f: Callable[[np.ndarray], np.ndarray], times: np.ndarray, step: float
+) -> np.ndarray:
     """∫_0^t f for each t in ``times``: composite 16-point Gauss–Legendre on pieces <= ``step``.
 
     For an integrand analytic on a strip around the real axis the error per piece falls like
@@ -235,7 +247,9 @@ def _quat_axis(axis: int, angle: np.ndarray) -> np.ndarray:
     return quat_from_axis_angle(np.eye(3)[axis], angle)
 
 
-def torque_free_exact(inertia_diag, q0, omega0_world, times) -> tuple[np.ndarray, np.ndarray]:
+def torque_free_exact(
+    inertia_diag: ArrayLike, q0: ArrayLike, omega0_world: ArrayLike, times: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Exact orientation and world angular velocity of the torque-free body, without an ODE solver.
 
     L&L §37 with Euler angles about the fixed L: R(t) = A Rz(φ) Rx(θ) Rz(ψ), where θ and ψ
@@ -263,13 +277,13 @@ def torque_free_exact(inertia_diag, q0, omega0_world, times) -> tuple[np.ndarray
     to_polar = cyc @ sol.q1  # y = to_polar @ Ω_body
     iy = cyc @ sol.inertia
 
-    def polar_omega(t):
+    def polar_omega(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s, ph = sol(t)
         return s @ cyc.T, ph
 
     big_m = np.linalg.norm(iy * (cyc @ sol.s0))
 
-    def phi_rate(t):  # L&L (37.16)
+    def phi_rate(t: np.ndarray) -> np.ndarray:  # L&L (37.16)
         y, _ = polar_omega(t)
         a, b = iy[0] * y[:, 0] ** 2, iy[1] * y[:, 1] ** 2
         return big_m * (a + b) / (iy[0] * a + iy[1] * b)
@@ -278,7 +292,7 @@ def torque_free_exact(inertia_diag, q0, omega0_world, times) -> tuple[np.ndarray
     scale = max(sol.rate, np.linalg.norm(omega0_world))
     phi = _cumulative_integral(phi_rate, times, 0.25 / scale)
 
-    def theta_psi(y):
+    def theta_psi(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = iy * y / big_m
         theta = np.arctan2(np.hypot(n[:, 0], n[:, 1]), n[:, 2])
         return theta, np.arctan2(n[:, 0], n[:, 1])
@@ -291,7 +305,7 @@ def torque_free_exact(inertia_diag, q0, omega0_world, times) -> tuple[np.ndarray
     _, psi_ref = theta_psi(y_ref)
     sigma = np.sign(np.sin(psi_ref[1] - psi_ref[0]))
 
-    def lift(raw, a):
+    def lift(raw: np.ndarray, a: np.ndarray) -> np.ndarray:
         base = sigma * a + psi_ref[0]
         return base + np.angle(np.exp(1j * (raw - base)))
 
@@ -317,7 +331,9 @@ def torque_free_exact(inertia_diag, q0, omega0_world, times) -> tuple[np.ndarray
 # --- closed forms -----------------------------------------------------------------------------
 
 
-def symmetric_top(I_perp, I_axis, q0, omega0_world, times) -> tuple[np.ndarray, np.ndarray]:
+def symmetric_top(
+    I_perp: float, I_axis: float, q0: ArrayLike, omega0_world: ArrayLike, times: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Torque-free symmetric body (I1 = I2 = I_perp, body z the symmetry axis), exact.
 
     In the body frame Ω⊥ turns about e3 at λ = (I_axis - I_perp) / I_perp · Ω3 (Euler's
@@ -344,7 +360,7 @@ def symmetric_top(I_perp, I_axis, q0, omega0_world, times) -> tuple[np.ndarray, 
 
 
 def spin_up(
-    inertia_diag, axis_body_principal: int, torque_magnitude: float, times
+    inertia_diag: ArrayLike, axis_body_principal: int, torque_magnitude: float, times: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray]:
     """Body at rest, identity orientation, constant world torque T along principal axis ``a``.
 
@@ -359,7 +375,9 @@ def spin_up(
     return q, rate * times[:, None] * axis
 
 
-def projectile(x0, v0, g, times) -> tuple[np.ndarray, np.ndarray]:
+def projectile(
+    x0: ArrayLike, v0: ArrayLike, g: ArrayLike, times: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Free flight under constant acceleration g: x = x0 + v0 t + ½ g t², v = v0 + g t.
 
     x0, v0, g broadcast together (e.g. (3,) or (N, 3)); results are (T, *broadcast shape).
@@ -370,7 +388,14 @@ def projectile(x0, v0, g, times) -> tuple[np.ndarray, np.ndarray]:
     return x0 + v0 * t + 0.5 * g * t**2, v0 + g * t
 
 
-def damped_spring(mass, stiffness, damping, x0, v0, times) -> tuple[np.ndarray, np.ndarray]:
+def damped_spring(
+    mass: float,
+    stiffness: float,
+    damping: float,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    times: ArrayLike,
+) -> tuple[np.ndarray, np.ndarray]:
     """1-D mass on a linear spring with viscous damping: m ẍ = -k x - c ẋ, exact in all regimes.
 
     With γ = c / 2m, ω0² = k / m and ν² = ω0² - γ² (any sign), the solution is

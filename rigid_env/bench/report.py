@@ -6,18 +6,25 @@ import json
 import math
 import platform
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from ..files import atomic_open, write_text  # noqa: E402
 
+# Where a long measurement reports what it is doing (one line per call), e.g. print to stderr.
+Progress = Callable[[str], None]
 
-def fmt(value, spec: str = ".3g") -> str:
+
+def fmt(value: object, spec: str = ".3g") -> str:
     if value is None:
         return "—"
     if isinstance(value, (bool, np.bool_)):
@@ -27,7 +34,7 @@ def fmt(value, spec: str = ".3g") -> str:
     return str(value)
 
 
-def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
+def markdown_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> str:
     """``columns`` are (header, key, format spec); a missing value prints as "—"."""
     lines = [
         "| " + " | ".join(h for h, _, _ in columns) + " |",
@@ -38,7 +45,7 @@ def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str
     return "\n".join(lines)
 
 
-def clean(obj):
+def clean(obj: Any) -> Any:
     """JSON-safe copy: numpy scalars to Python, NaN/inf to None (JSON has no NaN)."""
     if isinstance(obj, dict):
         return {str(k): clean(v) for k, v in obj.items()}
@@ -55,7 +62,7 @@ def clean(obj):
     return obj
 
 
-def write_json(path: Path, command: str, preset: str, payload: dict) -> None:
+def write_json(path: Path, command: str, preset: str, payload: dict[str, Any]) -> None:
     doc = {
         "command": command,
         "preset": preset,
@@ -71,7 +78,7 @@ def write_json(path: Path, command: str, preset: str, payload: dict) -> None:
     write_text(path, json.dumps(clean(doc), indent=1, allow_nan=False))
 
 
-def save(fig, path: Path) -> None:
+def save(fig: Figure, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         with atomic_open(path) as f:
@@ -80,7 +87,7 @@ def save(fig, path: Path) -> None:
         plt.close(fig)
 
 
-def subplots(n: int, width: float = 4.6, height: float = 3.8):
+def subplots(n: int, width: float = 4.6, height: float = 3.8) -> tuple[Figure, list[Axes]]:
     cols = min(n, 3)
     rows = math.ceil(n / cols)
     fig, axes = plt.subplots(

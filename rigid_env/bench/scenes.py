@@ -59,6 +59,6 @@ def spring(
     )
 
 
-def stiff_spring(integrator: str, dt: float, k_dt2_over_m: float, mass: float = 1.0):
+def stiff_spring(integrator: str, dt: float, k_dt2_over_m: float, mass: float = 1.0) -> sim.Scene:
     """An undamped spring whose stiffness makes ``k Δt² / m`` equal the given number."""
     return spring(integrator, dt, stiffness=k_dt2_over_m * mass / dt**2, damping=0.0, mass=mass)

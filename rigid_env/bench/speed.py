@@ -35,6 +35,9 @@ import sys
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -43,13 +46,27 @@ from rigid_env.sim.scenes import landing_scene
 
 from . import contact_cases, peers, report, scenes
 
-PRESETS = {
+
+class Preset(TypedDict):
+    """Batch sizes and block length of the scene timings; vector-env sizes and steps of the
+    env timings; whether to run the compile-time probe."""
+
+    batches: tuple[int, ...]
+    block_s: float
+    repeats: int
+    env_batches: tuple[int, ...]
+    env_steps: int
+    compile_probe: bool
+
+
+PRESETS: dict[str, Preset] = {
     "full": dict(
         batches=(1, 64, 1024, 16384),
         block_s=0.25,
         repeats=5,
         env_batches=(1, 64, 1024, 4096),
         env_steps=200,
+        compile_probe=True,
     ),
     "quick": dict(
         batches=(1, 64, 1024),  # 16384 in the full run (the landing pre-roll alone takes ~1 min)
@@ -57,6 +74,7 @@ PRESETS = {
         repeats=3,
         env_batches=(1, 64, 1024, 4096),
         env_steps=30,
+        compile_probe=True,
     ),
     # tiny (the tests) skips the compile-time probe: it compiles from empty caches in fresh
     # processes, seconds per scene.
@@ -73,9 +91,14 @@ DT = 0.01
 BREAKDOWN_BATCH = 1024
 BACKENDS = ("numpy", "compiled")
 
+SceneFactory = Callable[[str, float], sim.Scene]  # (integrator, dt) -> Scene
+InitialFn = Callable[[sim.Scene, int], sim.State]  # (scene, batch) -> State
+# (name, factory, initial state: Scene.initial_state keywords or a function, integrators)
+SceneCase = tuple[str, SceneFactory, dict[str, Any] | InitialFn, tuple[str, ...]]
+
 
 @contextlib.contextmanager
-def backend(name: str):
+def backend(name: str) -> Iterator[None]:
     """Scenes built inside use this backend (the factories take none of their own)."""
     saved = os.environ.get("RIGID_ENV_BACKEND")
     os.environ["RIGID_ENV_BACKEND"] = name
@@ -88,7 +111,7 @@ def backend(name: str):
             os.environ["RIGID_ENV_BACKEND"] = saved
 
 
-def build(factory, integrator: str, name: str):
+def build(factory: SceneFactory, integrator: str, name: str) -> sim.Scene | None:
     """The scene on backend ``name``, or None when that backend cannot run it."""
     with backend(name):
         try:
@@ -99,7 +122,9 @@ def build(factory, integrator: str, name: str):
             return None
 
 
-def _best_time(fn, state, block_s: float, repeats: int) -> float:
+def _best_time(
+    fn: Callable[[sim.State], sim.State], state: sim.State, block_s: float, repeats: int
+) -> float:
     """Best seconds per call of ``state = fn(state)`` over ``repeats`` blocks."""
     s = fn(fn(state))
     start = time.perf_counter()
@@ -117,11 +142,11 @@ def _best_time(fn, state, block_s: float, repeats: int) -> float:
 LANDING_PREROLL_S = 1.0  # the landing batch is timed after this long: boxes on the ground
 
 
-def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
+def scene_cases() -> list[SceneCase]:
     """(name, factory(integrator, dt), initial state (kwargs or (scene, batch) -> State),
     integrators)."""
     contact = contact_cases.compatible()
-    cases = [
+    cases: list[SceneCase] = [
         ("free_body", scenes.free_body, {"angular_velocity": scenes.TUMBLE_OMEGA}, sim.INTEGRATORS),
         (
             "stiff_spring",
@@ -134,7 +159,7 @@ def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
     # landing_scene returns (scene, initial_state(batch_shape, rng)); tilts and spins vary
     # per batch element. Pre-rolled so the timed steps have the boxes bouncing and resting
     # on the ground (the contact solver running), the state a training episode spends in.
-    def landing_initial(scene, batch):
+    def landing_initial(scene: sim.Scene, batch: int) -> sim.State:
         state = landing_scene()[1](batch_shape=(batch,), rng=np.random.default_rng(0))
         for _ in range(int(round(LANDING_PREROLL_S / scene.dt))):
             state = scene.step(state)
@@ -159,7 +184,7 @@ def scene_cases() -> list[tuple[str, object, dict, tuple[str, ...]]]:
     return cases
 
 
-def _impact_initial(scene, batch):
+def _impact_initial(scene: sim.Scene, batch: int) -> sim.State:
     """The sphere–box impact of the stability matrix, its box 1.4 m away at 1 m/s per batch
     element with a random extra gap, so impacts spread over the timed steps."""
     _, state, _ = contact_cases.sphere_and_box(scene.integrator, scene.dt, 1.0)
@@ -172,14 +197,16 @@ def _impact_initial(scene, batch):
     )
 
 
-def _initial(scene, initial, batch: int):
+def _initial(scene: sim.Scene, initial: dict[str, Any] | InitialFn, batch: int) -> sim.State:
     """``initial`` is Scene.initial_state keywords, or a function of the batch size."""
     if callable(initial):
         return initial(scene, batch)
     return scene.initial_state(**initial, batch_shape=(batch,))
 
 
-def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) -> list[dict]:
+def breakdown(
+    scene: sim.Scene, state: sim.State, block_s: float, repeats: int
+) -> list[dict[str, Any]]:
     """Seconds per step in each stage, timed inside ``scene.step`` over real steps by the
     scene's public :class:`sim.StageTimer`."""
     clock = time.perf_counter
@@ -190,7 +217,8 @@ def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) 
         start = clock()
         state = scene.step(state)
         steps = max(2, int(block_s / max(clock() - start, 1e-7)))
-        best, total = None, np.inf
+        best: dict[str, float] = {}  # the parts of the fastest block (repeats >= 1)
+        total = np.inf
         for _ in range(repeats):  # the least disturbed block, all of its parts
             timer.reset()
             for _ in range(steps):
@@ -212,7 +240,7 @@ def breakdown(scene: sim.Scene, state: sim.State, block_s: float, repeats: int) 
     return rows
 
 
-def memory_per_body(scene: sim.Scene, state: sim.State) -> dict:
+def memory_per_body(scene: sim.Scene, state: sim.State) -> dict[str, float]:
     """State bytes per body, and the peak transient allocation of one step per body."""
     bodies = int(np.prod(state.batch_shape)) * scene.n_bodies
     state_bytes = sum(a.nbytes for a in state.arrays())
@@ -224,9 +252,12 @@ def memory_per_body(scene: sim.Scene, state: sim.State) -> dict:
     return {"state_bytes_per_body": state_bytes / bodies, "step_peak_bytes_per_body": peak / bodies}
 
 
-def measure(preset: str = "full", progress=None) -> dict:
+def measure(preset: str = "full", progress: report.Progress | None = None) -> dict[str, Any]:
     cfg = PRESETS[preset]
-    records, stages, memory, missing = [], {}, {}, []
+    records: list[dict[str, Any]] = []
+    stages: dict[str, dict[str, Any]] = {}
+    memory: dict[str, dict[str, float]] = {}
+    missing: list[str] = []
     for name, factory, initial, integrators in scene_cases():
         for integrator in integrators:
             for engine_backend in BACKENDS:
@@ -278,7 +309,7 @@ def measure(preset: str = "full", progress=None) -> dict:
         "records": records,
         "stage_breakdown": stages,
         "memory": memory,
-        "compile": compile_times(progress) if cfg.get("compile_probe", True) else [],
+        "compile": compile_times(progress) if cfg["compile_probe"] else [],
         "environments": env_speed(cfg, progress),
         "unavailable": [f"{m} (a stage has no kernel)" for m in missing],
         "peers": peers.status(),
@@ -309,7 +340,7 @@ print(json.dumps({"backend": scene.backend, "import_s": imported - start,
 COMPILE_CASES = ("splitting", "landing")
 
 
-def compile_times(progress=None) -> list[dict]:
+def compile_times(progress: report.Progress | None = None) -> list[dict[str, Any]]:
     """Seconds to import rigid_env.sim, build a scene and take its first step in a fresh
     process, with empty numba and driver caches (``cold``: everything compiles) and again with
     the caches the first run wrote (``cached``)."""
@@ -351,7 +382,7 @@ def env_ids() -> list[str]:
     return sorted(k for k in gymnasium.registry if k.startswith("RigidEnv/"))
 
 
-def env_speed(cfg: dict, progress=None) -> list[dict]:
+def env_speed(cfg: Preset, progress: report.Progress | None = None) -> list[dict[str, Any]]:
     """Env steps per second: one env (``gymnasium.make``), and native vector envs of N, each
     run by :func:`rigid_env.bench.env_speed.run`; then Gymnasium's Hopper-v5 as a single env
     beside them when MuJoCo is installed (``peers.available()``; no physics share)."""
@@ -359,7 +390,7 @@ def env_speed(cfg: dict, progress=None) -> list[dict]:
 
     from . import env_speed as loop
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     for env_id in env_ids():
         if progress:
             progress(f"speed env {env_id}")
@@ -408,13 +439,13 @@ def env_speed(cfg: dict, progress=None) -> list[dict]:
 # --- output ------------------------------------------------------------------------------------
 
 
-def table(result: dict) -> str:
+def table(result: dict[str, Any]) -> str:
     recs = result["records"]
     batches = sorted({r["batch"] for r in recs})
     keys = list(dict.fromkeys((r["scene"], _engine(r), r["integrator"]) for r in recs))
     rows = []
     for scene, engine, integrator in keys:
-        row = {"scene": scene, "engine": engine, "integrator": integrator}
+        row: dict[str, Any] = {"scene": scene, "engine": engine, "integrator": integrator}
         for r in recs:
             if (r["scene"], _engine(r), r["integrator"]) == (scene, engine, integrator):
                 row[f"b{r['batch']}"] = r["body_steps_per_s"]
@@ -494,7 +525,7 @@ def table(result: dict) -> str:
     return "\n".join(out)
 
 
-def env_table(result: dict) -> str:
+def env_table(result: dict[str, Any]) -> str:
     """Env steps per second of every env, single and native vector, and the physics share."""
     return report.markdown_table(
         result["environments"],
@@ -508,14 +539,16 @@ def env_table(result: dict) -> str:
     )
 
 
-def _engine(r: dict) -> str:
+def _engine(r: dict[str, Any]) -> str:
     """The table's engine label: MuJoCo, or rigid_env with its backend."""
     if r["engine"] != "rigid_env":
         return r["engine"]
     return f"rigid_env {r.get('backend', 'numpy')}"
 
 
-def _record(recs, scene, engine, integrator, batch):
+def _record(
+    recs: Sequence[dict[str, Any]], scene: str, engine: str, integrator: str, batch: int
+) -> dict[str, Any] | None:
     for r in recs:
         if (r["scene"], _engine(r), r["integrator"], r["batch"]) == (
             scene,
@@ -536,11 +569,11 @@ TARGETS = (
 )
 
 
-def targets(result: dict) -> list[str]:
+def targets(result: dict[str, Any]) -> list[str]:
     """The issue's speed targets against this run's figures, both backends and MuJoCo."""
     recs, rows = result["records"], []
     for what, scene, integrator, mj, batch, goal in TARGETS:
-        row = {"what": what, "goal": goal}
+        row: dict[str, Any] = {"what": what, "goal": goal}
         for b in BACKENDS:
             r = _record(recs, scene, f"rigid_env {b}", integrator, batch)
             row[b] = None if r is None else r["s_per_step"] * 1e6
@@ -571,7 +604,7 @@ def targets(result: dict) -> list[str]:
     ]
 
 
-def plot(result: dict, path) -> None:
+def plot(result: dict[str, Any], path: Path) -> None:
     recs = result["records"]
     scenes_ = list(dict.fromkeys(r["scene"] for r in recs))
     fig, axes = report.subplots(len(scenes_) + 1)

@@ -21,8 +21,11 @@ a contact case.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,8 +50,9 @@ LONG_SPINS = np.array(
 class Case:
     name: str
     group: str
-    build: Callable[[str], sim.Scene]  # integrator -> Scene (or -> (Scene, State, depth))
-    initial: dict | None
+    build: Callable[[str], sim.Scene | contact_cases.Case]  # integrator -> Scene, or a contact
+    # case's (Scene, State, depth)
+    initial: dict[str, Any] | None  # Scene.initial_state keywords; None: the build gives a state
     steps: int
     conserves_momentum: bool | str  # True/"angular", "linear", or False
     check_every: int = 1
@@ -57,7 +61,7 @@ class Case:
     steps_for: Callable[[str], int] | None = None  # per-integrator step count
 
 
-def _free(body_fn, dt):
+def _free(body_fn: Callable[[], sim.Body], dt: float) -> Callable[[str], sim.Scene]:
     return lambda integrator: scenes.free_body(integrator, dt, body_fn())
 
 
@@ -75,7 +79,7 @@ def cases(preset: str) -> list[Case]:
             Case(
                 f"stiff spring kΔt²/m={k:g}",
                 "stiff_spring",
-                lambda i, k=k: scenes.stiff_spring(i, DT, k),
+                partial(scenes.stiff_spring, dt=DT, k_dt2_over_m=k),
                 {"position": (0.1, 0.0, 0.0)},
                 short,
                 False,
@@ -99,7 +103,7 @@ def cases(preset: str) -> list[Case]:
             Case(
                 f"needle I ratio={r:g}",
                 "needle",
-                _free(lambda r=r: scenes.needle(r), DT),
+                _free(partial(scenes.needle, r), DT),
                 {"angular_velocity": (1.0, 0.5, 20.0)},
                 short,
                 True,
@@ -154,7 +158,7 @@ def contact_case_list(preset: str) -> list[Case]:
             Case(
                 f"ground impact {v:g} m/s, dt=1/60",
                 "impact_speed",
-                lambda i, v=v: contact_cases.ground_impact(i, CONTACT_DT, v),
+                partial(contact_cases.ground_impact, dt=CONTACT_DT, speed=v),
                 None,
                 steps,
                 False,
@@ -167,7 +171,7 @@ def contact_case_list(preset: str) -> list[Case]:
             Case(
                 f"sphere→sphere mass ratio {r:.0e}",
                 "mass_ratio",
-                lambda i, r=r: contact_cases.two_spheres(i, CONTACT_DT, r),
+                partial(contact_cases.two_spheres, dt=CONTACT_DT, ratio=r),
                 None,
                 steps // 2,
                 "linear",
@@ -178,7 +182,7 @@ def contact_case_list(preset: str) -> list[Case]:
             Case(
                 f"box→sphere mass ratio {r:.0e}",
                 "mass_ratio",
-                lambda i, r=r: contact_cases.sphere_and_box(i, CONTACT_DT, r),
+                partial(contact_cases.sphere_and_box, dt=CONTACT_DT, ratio=r),
                 None,
                 steps // 2,
                 "linear",
@@ -191,7 +195,7 @@ def contact_case_list(preset: str) -> list[Case]:
                 Case(
                     f"stack of {count}, top/bottom mass {r:.0e}",
                     "stack",
-                    lambda i, r=r, n=count: contact_cases.stack(i, CONTACT_DT, r, n),
+                    partial(contact_cases.stack, dt=CONTACT_DT, ratio=r, count=count),
                     None,
                     steps,
                     False,
@@ -202,13 +206,13 @@ def contact_case_list(preset: str) -> list[Case]:
     return out
 
 
-def run_case(case: Case, integrator: str) -> dict:
+def run_case(case: Case, integrator: str) -> dict[str, Any]:
     # Overflow on the way to a divergence is expected here; the result is checked instead.
     with np.errstate(all="ignore"):
         return _run_case(case, integrator)
 
 
-def _run_case(case: Case, integrator: str) -> dict:
+def _run_case(case: Case, integrator: str) -> dict[str, Any]:
     steps = case.steps_for(integrator) if case.steps_for else case.steps
     base = {
         "scene": case.name,
@@ -224,17 +228,21 @@ def _run_case(case: Case, integrator: str) -> dict:
     if case.contact and integrator not in contact_cases.compatible():
         return {**base, "dt": None, "batch": 1, "status": "n/a", "stable": None}
     depth = None
-    if case.contact:
-        scene, state, depth = case.build(integrator)
+    built = case.build(integrator)
+    if isinstance(built, tuple):  # a contact case
+        scene, state, depth = built
     else:
-        scene = case.build(integrator)
-        state = scene.initial_state(**case.initial)
+        scene = built
+        state = scene.initial_state(**(case.initial or {}))
     e0 = scene.energy(state)
-    kind = {True: "angular", False: None}.get(case.conserves_momentum, case.conserves_momentum)
+    conserved = case.conserves_momentum
+    kind = "angular" if conserved is True else (conserved or None)
     momentum = scene.angular_momentum if kind == "angular" else scene.linear_momentum
     m0 = momentum(state) if kind else None
     energy_drift = momentum_drift = penetration = 0.0
-    history = []  # (step, energy drift, momentum drift) at the checks, for growth laws
+    history: list[
+        tuple[int, float, float]
+    ] = []  # (step, energy drift, momentum drift) at the checks, for growth laws
     status, first = "stable", None
     for step in range(1, steps + 1):
         try:
@@ -254,7 +262,7 @@ def _run_case(case: Case, integrator: str) -> dict:
             float(
                 np.max(np.linalg.norm(momentum(state) - m0, axis=-1) / np.linalg.norm(m0, axis=-1))
             )
-            if kind
+            if m0 is not None  # kind is set
             else 0.0
         )
         if not np.isfinite(de) or de > BLOWUP:
@@ -289,7 +297,7 @@ def _run_case(case: Case, integrator: str) -> dict:
     return out
 
 
-def _growth(history, column) -> float | None:
+def _growth(history: list[tuple[int, float, float]], column: int) -> float | None:
     """Exponent p of drift ∝ stepsᵖ fitted over the checks (None if the drift is at rounding)."""
     pts = [(h[0], h[column]) for h in history if h[column] > 1e-13]
     if len(pts) < 3:
@@ -298,7 +306,11 @@ def _growth(history, column) -> float | None:
     return float(np.polyfit(x, y, 1)[0])
 
 
-def measure(preset: str = "full", progress=None, integrators=None) -> dict:
+def measure(
+    preset: str = "full",
+    progress: report.Progress | None = None,
+    integrators: Sequence[str] | None = None,
+) -> dict[str, Any]:
     integrators = tuple(integrators or sim.INTEGRATORS)
     records = []
     for case in cases(preset):
@@ -316,7 +328,7 @@ def measure(preset: str = "full", progress=None, integrators=None) -> dict:
 # --- output ------------------------------------------------------------------------------------
 
 
-def _cell(r: dict) -> str:
+def _cell(r: dict[str, Any]) -> str:
     if r["status"] == "n/a":
         return "n/a"
     if r["status"] == "diverged":
@@ -330,9 +342,9 @@ def _cell(r: dict) -> str:
     return text
 
 
-def table(result: dict) -> str:
+def table(result: dict[str, Any]) -> str:
     integrators = result["integrators"]
-    rows = {}
+    rows: dict[str, dict[str, str]] = {}
     for r in result["records"]:
         rows.setdefault(r["scene"], {"case": r["scene"]})[r["integrator"]] = _cell(r)
     out = [
@@ -391,7 +403,7 @@ def table(result: dict) -> str:
     return "\n".join(out)
 
 
-def plot(result: dict, path) -> None:
+def plot(result: dict[str, Any], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     integrators = list(result["integrators"])

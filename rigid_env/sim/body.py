@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import mass as mass_properties
-from .shapes import Box, Polyhedron, Sphere
+from .shapes import Box, Polyhedron, Shape, Sphere
 from .validation import inertia_tensor, positive_scalar
 
 
@@ -17,27 +20,34 @@ class Body:
     (zero for primitives, Mirtich's centroid for polyhedra).
     """
 
-    def __init__(self, mass, inertia, shape=None, center_of_mass=(0.0, 0.0, 0.0)):
+    def __init__(
+        self,
+        mass: float,
+        inertia: ArrayLike,
+        shape: Shape | None = None,
+        center_of_mass: ArrayLike = (0.0, 0.0, 0.0),
+    ) -> None:
         self.mass = positive_scalar(mass, "mass")
         self.inertia = inertia_tensor(inertia, "inertia")
         self.inertia.setflags(write=False)
-        self.shape = shape
+        # Any, not Shape | None: the envs read their box's corners without narrowing the union.
+        self.shape: Any = shape
         self.center_of_mass = np.array(center_of_mass, dtype=float)
         self.center_of_mass.setflags(write=False)
 
     @classmethod
-    def box(cls, half_extents, mass) -> Body:
+    def box(cls, half_extents: ArrayLike, mass: float) -> Body:
         """A uniform box centred on its centre of mass, edges along the body axes."""
         props = mass_properties.box(half_extents, mass)
         return cls(props.mass, props.inertia, Box(np.array(half_extents, dtype=float)))
 
     @classmethod
-    def sphere(cls, radius, mass) -> Body:
+    def sphere(cls, radius: float, mass: float) -> Body:
         props = mass_properties.sphere(radius, mass)
         return cls(props.mass, props.inertia, Sphere(float(radius)))
 
     @classmethod
-    def polyhedron(cls, vertices, faces, density) -> Body:
+    def polyhedron(cls, vertices: ArrayLike, faces: mass_properties.Faces, density: float) -> Body:
         """A closed uniform polyhedron (Mirtich 1996); body origin moves to its centre of mass."""
         props = mass_properties.polyhedron(vertices, faces, density)
         local = np.array(vertices, dtype=float) - props.center_of_mass

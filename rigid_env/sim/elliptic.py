@@ -14,6 +14,7 @@ so the same code ports to a per-element compiled kernel; scipy is used by the te
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 # Carlson (1995): stop when 4^-m Q < |A_m| with Q = (3r)^(-1/6) max|A0 - x| for R_F and
 # (r/4)^(-1/6) max|A0 - x| for R_J; the truncated series is then accurate to r.
@@ -40,7 +41,9 @@ def _rc_one_plus(e: np.ndarray) -> np.ndarray:
     return np.where(small, series, far)
 
 
-def carlson_rf_rj(x, y, z, p) -> tuple[np.ndarray, np.ndarray]:
+def carlson_rf_rj(
+    x: ArrayLike, y: ArrayLike, z: ArrayLike, p: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """R_F(x, y, z) and R_J(x, y, z, p), elementwise, for x, y, z >= 0 (at most one zero), p > 0.
 
     R_F(x, y, z) = ½ ∫₀^∞ dt / √((t+x)(t+y)(t+z)),
@@ -128,7 +131,7 @@ _SN_SERIES = (
 _SERIES_RADIUS = 2.0**-5
 
 
-def halvings(u) -> np.ndarray:
+def halvings(u: ArrayLike) -> np.ndarray:
     """Per element, how many times ``u`` must be halved to enter the series' range."""
     a = np.abs(u)
     _, exponent = np.frexp(
@@ -137,7 +140,9 @@ def halvings(u) -> np.ndarray:
     return np.maximum(exponent, 0)
 
 
-def jacobi_sn_cn_dn(u, m, mc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def jacobi_sn_cn_dn(
+    u: ArrayLike, m: ArrayLike, mc: ArrayLike
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """sn, cn, dn of u for parameter m = k² in [0, 1], given also mc = 1 − m (exactly).
 
     Passing mc separately keeps full precision near the separatrix (k → 1), where 1 − m would

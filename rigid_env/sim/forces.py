@@ -14,23 +14,31 @@ Every term is a stage object (``rigid_env.sim.pipeline.Stage``) with
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .model import Model
 from .rotation import cross, quat_rotate, quat_to_matrix, skew
+
+if TYPE_CHECKING:  # the pipeline imports the model; only its type is needed here
+    from .pipeline import StepContext
+
+# (F, T) on world-frame arrays (*batch, n, 3); None for a component a term does not produce.
+Wrench = tuple[np.ndarray | None, np.ndarray | None]
 
 
 class Gravity:
     name = "gravity"
     velocity_dependent = False
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model) -> None:
         self.weight = model.mass[:, None] * model.gravity  # (n, 3), broadcast over the batch
 
-    def wrench(self, x, q, v, w):
+    def wrench(self, x: np.ndarray, q: np.ndarray, v: np.ndarray, w: np.ndarray) -> Wrench:
         return self.weight, None
 
-    def __call__(self, ctx) -> None:
+    def __call__(self, ctx: StepContext) -> None:
         ctx.add_wrench(self.weight, None)
 
 
@@ -40,20 +48,20 @@ class Damping:
     name = "damping"
     velocity_dependent = True
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model) -> None:
         self.model = model
         self.gv, self.gw = model.linear_damping, model.angular_damping
         self.m = model.mass[:, None]
 
-    def wrench(self, x, q, v, w):
+    def wrench(self, x: np.ndarray, q: np.ndarray, v: np.ndarray, w: np.ndarray) -> Wrench:
         force = -self.gv * self.m * v if self.gv else None
         torque = -self.gw * self.model.apply_inertia(quat_to_matrix(q), w) if self.gw else None
         return force, torque
 
-    def __call__(self, ctx) -> None:
+    def __call__(self, ctx: StepContext) -> None:
         ctx.add_wrench(*self.wrench(ctx.x, ctx.q, ctx.v, ctx.w))
 
-    def damping_matrix(self, x, q):
+    def damping_matrix(self, x: np.ndarray, q: np.ndarray) -> np.ndarray:
         """diag(γ_v m I, γ_ω R M0 Rᵀ) per body, (*batch, n, 6, 6)."""
         rot = quat_to_matrix(q)
         out = np.zeros((*q.shape[:-1], 6, 6))
@@ -67,7 +75,7 @@ class Springs:
 
     name = "springs"
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model) -> None:
         s = model.springs
         self.n_bodies = model.n_bodies
         self.body = np.array([sp.body for sp in s])
@@ -82,14 +90,16 @@ class Springs:
         self.incidence = np.zeros((len(s), model.n_bodies))
         self.incidence[np.arange(len(s)), self.body] = 1.0
 
-    def _geometry(self, x, q):
+    def _geometry(
+        self, x: np.ndarray, q: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         arm = quat_rotate(q[..., self.body, :], self.attach)  # R r, (*batch, s, 3)
         d = x[..., self.body, :] + arm - self.anchor
         length = np.linalg.norm(d, axis=-1, keepdims=True)
         unit = d / np.where(length > 0, length, 1.0)
         return arm, d, length, unit
 
-    def wrench(self, x, q, v, w):
+    def wrench(self, x: np.ndarray, q: np.ndarray, v: np.ndarray, w: np.ndarray) -> Wrench:
         arm, d, length, unit = self._geometry(x, q)
         pdot = v[..., self.body, :] + cross(w[..., self.body, :], arm)
         k, c, has_rest = self.k, self.c, self.has_rest
@@ -104,10 +114,10 @@ class Springs:
             np.einsum("...si,sn->...ni", t, self.incidence),
         )
 
-    def __call__(self, ctx) -> None:
+    def __call__(self, ctx: StepContext) -> None:
         ctx.add_wrench(*self.wrench(ctx.x, ctx.q, ctx.v, ctx.w))
 
-    def damping_matrix(self, x, q):
+    def damping_matrix(self, x: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Σ Jᵀ C J over each body's springs, J = [I, −(R r)*] (ṗ = J (v, ω)), C = c d̂ d̂ᵀ (or
         c I without rest length), (*batch, n, 6, 6)."""
         arm, _, _, unit = self._geometry(x, q)
@@ -118,9 +128,12 @@ class Springs:
         return np.einsum("...sai,...sab,...sbj,sn->...nij", jac, damp, jac, self.incidence)
 
 
-def build(model: Model) -> tuple:
+ForceStage = Gravity | Damping | Springs
+
+
+def build(model: Model) -> tuple[ForceStage, ...]:
     """The force stages a model needs, in order; a free body in space gets none."""
-    stages = []
+    stages: list[ForceStage] = []
     if model.gravity is not None and np.any(model.gravity):
         stages.append(Gravity(model))
     if model.linear_damping or model.angular_damping:

@@ -20,6 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+# A polyhedron's faces: vertex-index sequences (or an integer array, one row per face).
+Faces = Sequence[Sequence[int]] | np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,7 +41,7 @@ def _props(mass: float, com: np.ndarray, inertia: np.ndarray) -> MassProperties:
     return MassProperties(float(mass), com, inertia)
 
 
-def _positive_scalar(name: str, value) -> float:
+def _positive_scalar(name: str, value: float) -> float:
     try:
         x = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -47,7 +51,7 @@ def _positive_scalar(name: str, value) -> float:
     return float(x)
 
 
-def box(half_extents, mass) -> MassProperties:
+def box(half_extents: ArrayLike, mass: float) -> MassProperties:
     """A uniform box centred at the origin, edges along the axes.
 
     I = m/3 diag(b² + c², a² + c², a² + b²) for half extents (a, b, c) (the textbook
@@ -64,14 +68,14 @@ def box(half_extents, mass) -> MassProperties:
     return _props(m, np.zeros(3), m / 3.0 * np.diag([b2 + c2, a2 + c2, a2 + b2]))
 
 
-def sphere(radius, mass) -> MassProperties:
+def sphere(radius: float, mass: float) -> MassProperties:
     """A uniform solid sphere centred at the origin: I = 2/5 m r² Id."""
     r = _positive_scalar("radius", radius)
     m = _positive_scalar("mass", mass)
     return _props(m, np.zeros(3), 0.4 * m * r * r * np.eye(3))
 
 
-def _check_polyhedron(vertices, faces) -> tuple[np.ndarray, list[np.ndarray]]:
+def _check_polyhedron(vertices: ArrayLike, faces: Faces) -> tuple[np.ndarray, list[np.ndarray]]:
     try:
         v = np.array(vertices, dtype=float)  # a copy: the input is never modified
     except (TypeError, ValueError):
@@ -98,7 +102,7 @@ def _check_polyhedron(vertices, faces) -> tuple[np.ndarray, list[np.ndarray]]:
 
     # Closed and consistently oriented: every directed edge a→b occurs once, and its
     # reverse b→a once in another face. A reversed face repeats its neighbours' directions.
-    edges = Counter()
+    edges: Counter[tuple[int, int]] = Counter()
     for f in checked:
         edges.update(zip(f.tolist(), np.roll(f, -1).tolist(), strict=True))
     for (a, b), count in edges.items():
@@ -112,7 +116,9 @@ def _check_polyhedron(vertices, faces) -> tuple[np.ndarray, list[np.ndarray]]:
     return v, checked
 
 
-def _volume_integrals(v: np.ndarray, faces: list[np.ndarray]) -> tuple:
+def _volume_integrals(
+    v: np.ndarray, faces: list[np.ndarray]
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, float]:
     """Mirtich's T0 = ∫1, T1 = ∫(x, y, z), T2 = ∫(x², y², z²), TP = ∫(xy, yz, zx) over the solid.
 
     Mirtich's compVolumeIntegrals / compFaceIntegrals / compProjectionIntegrals, vectorised
@@ -219,7 +225,7 @@ def _volume_integrals(v: np.ndarray, faces: list[np.ndarray]) -> tuple:
     )
 
     # compVolumeIntegrals: scatter (A, B, C) back to (x, y, z); per face they're a permutation.
-    def xyz(fa, fb, fc):
+    def xyz(fa: np.ndarray, fb: np.ndarray, fc: np.ndarray) -> np.ndarray:
         out = np.empty((len(rows), 3))
         out[np.arange(len(rows)), A[rows]] = fa
         out[np.arange(len(rows)), B[rows]] = fb
@@ -231,10 +237,10 @@ def _volume_integrals(v: np.ndarray, faces: list[np.ndarray]) -> tuple:
     T1 = np.sum(n * xyz(Faa, Fbb, Fcc), axis=0) / 2
     T2 = np.sum(n * xyz(Faaa, Fbbb, Fccc), axis=0) / 3
     TP = np.sum(n * xyz(Faab, Fbbc, Fcca), axis=0) / 2  # (∫xy, ∫yz, ∫zx)
-    return T0, T1, T2, TP, scale
+    return T0, T1, T2, TP, float(scale)
 
 
-def polyhedron(vertices, faces, density) -> MassProperties:
+def polyhedron(vertices: ArrayLike, faces: Faces, density: float) -> MassProperties:
     """A uniform closed polyhedron (Mirtich 1996).
 
     ``vertices`` (V, 3); ``faces`` a sequence of vertex-index lists, each a simple planar

@@ -6,10 +6,13 @@ dynamic arrays live in :class:`~rigid_env.sim.state.State`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from .body import Body
 from .rotation import matrix_to_quat, matvec, rotate, rotate_inverse
 from .validation import finite_array, nonnegative_scalar, unit_interval
 
@@ -26,7 +29,7 @@ class Material:
     friction: float = 0.5
     restitution_threshold: float = 0.1
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "restitution", unit_interval(self.restitution, "restitution"))
         object.__setattr__(self, "friction", nonnegative_scalar(self.friction, "friction"))
         object.__setattr__(
@@ -41,7 +44,7 @@ class Ground(Material):
     """The plane z = 0 with normal +z, with the contact coefficients of a :class:`Material`."""
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Spring:
     """A spring from the world point ``anchor`` to the body-fixed point ``attach`` of body ``body``.
 
@@ -51,30 +54,49 @@ class Spring:
     """
 
     body: int
-    anchor: tuple
+    anchor: np.ndarray  # (3,), float64
     stiffness: float
-    damping: float = 0.0
-    rest_length: float = 0.0
-    attach: tuple = (0.0, 0.0, 0.0)
+    damping: float
+    rest_length: float
+    attach: np.ndarray  # (3,), float64
 
-    def __post_init__(self):
-        if not isinstance(self.body, (int, np.integer)) or isinstance(self.body, bool):
-            raise ValueError(f"body must be a body index (int), got {self.body!r}")
-        object.__setattr__(self, "anchor", finite_array(self.anchor, "anchor", (3,)))
-        object.__setattr__(self, "attach", finite_array(self.attach, "attach", (3,)))
-        if self.anchor.shape != (3,) or self.attach.shape != (3,):
+    # An explicit constructor: it takes any 3-sequence for the points and stores float arrays.
+    def __init__(
+        self,
+        body: int,
+        anchor: ArrayLike,
+        stiffness: float,
+        damping: float = 0.0,
+        rest_length: float = 0.0,
+        attach: ArrayLike = (0.0, 0.0, 0.0),
+    ) -> None:
+        if not isinstance(body, (int, np.integer)) or isinstance(body, bool):
+            raise ValueError(f"body must be a body index (int), got {body!r}")
+        anchor_array = finite_array(anchor, "anchor", (3,))
+        attach_array = finite_array(attach, "attach", (3,))
+        if anchor_array.shape != (3,) or attach_array.shape != (3,):
             raise ValueError("anchor and attach must be 3-vectors")
-        object.__setattr__(self, "stiffness", nonnegative_scalar(self.stiffness, "stiffness"))
-        object.__setattr__(self, "damping", nonnegative_scalar(self.damping, "damping"))
-        object.__setattr__(self, "rest_length", nonnegative_scalar(self.rest_length, "rest_length"))
+        object.__setattr__(self, "body", body)
+        object.__setattr__(self, "anchor", anchor_array)
+        object.__setattr__(self, "attach", attach_array)
+        object.__setattr__(self, "stiffness", nonnegative_scalar(stiffness, "stiffness"))
+        object.__setattr__(self, "damping", nonnegative_scalar(damping, "damping"))
+        object.__setattr__(self, "rest_length", nonnegative_scalar(rest_length, "rest_length"))
 
 
 class Model:
     """Per-body arrays (leading axis = body) and the scene's force terms, built once."""
 
     def __init__(
-        self, bodies, gravity, ground, springs, linear_damping, angular_damping, contacts=None
-    ):
+        self,
+        bodies: Sequence[Body],
+        gravity: ArrayLike | None,
+        ground: Ground | None,
+        springs: Sequence[Spring],
+        linear_damping: float,
+        angular_damping: float,
+        contacts: Material | None = None,
+    ) -> None:
         n = len(bodies)
         self.bodies = tuple(bodies)
         self.n_bodies = n

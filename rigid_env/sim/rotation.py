@@ -188,7 +188,7 @@ def axis_rotation_matrix(axis: int, angle: np.ndarray) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(c), np.zeros_like(c)
     i, j = (axis + 1) % 3, (axis + 2) % 3
-    rows = [[None] * 3 for _ in range(3)]
+    rows: list[list[np.ndarray]] = [[zero] * 3 for _ in range(3)]  # every entry set below
     rows[axis][axis], rows[axis][i], rows[axis][j] = one, zero, zero
     rows[i][axis], rows[i][i], rows[i][j] = zero, c, -s
     rows[j][axis], rows[j][i], rows[j][j] = zero, s, c

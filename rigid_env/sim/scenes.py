@@ -2,17 +2,33 @@
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from .body import Body
 from .model import Ground
 from .rotation import quat_exp
 from .scene import CONTACT_INTEGRATOR, Scene
+from .state import State
 
 LANDING_HALF_EXTENTS = (0.1, 0.15, 0.2)
 
 
-def landing_scene(integrator=CONTACT_INTEGRATOR, dt=1 / 240, restitution=0.3, friction=0.5):
+class InitialState(Protocol):
+    """The start-state factory a ready-made scene comes with."""
+
+    def __call__(
+        self, batch_shape: int | tuple[int, ...] = (), rng: np.random.Generator | None = None
+    ) -> State: ...
+
+
+def landing_scene(
+    integrator: str = CONTACT_INTEGRATOR,
+    dt: float = 1 / 240,
+    restitution: float = 0.3,
+    friction: float = 0.5,
+) -> tuple[Scene, InitialState]:
     """A 1 kg box (half extents 0.1, 0.15, 0.2 m) thrown at the ground under gravity.
 
     Returns ``(scene, initial_state)`` where ``initial_state(batch_shape=(), rng=None)`` drops
@@ -28,7 +44,9 @@ def landing_scene(integrator=CONTACT_INTEGRATOR, dt=1 / 240, restitution=0.3, fr
         ground=Ground(restitution=restitution, friction=friction),
     )
 
-    def initial_state(batch_shape=(), rng=None):
+    def initial_state(
+        batch_shape: int | tuple[int, ...] = (), rng: np.random.Generator | None = None
+    ) -> State:
         batch_shape = tuple(np.atleast_1d(batch_shape)) if np.ndim(batch_shape) else ()
         if rng is None:
             tilt = quat_exp(np.array([0.3, 0.2, 0.0]))

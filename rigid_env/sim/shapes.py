@@ -27,3 +27,6 @@ class Box:
 class Polyhedron:
     vertices: np.ndarray  # (V, 3), relative to the centre of mass
     faces: tuple[tuple[int, ...], ...]  # counter-clockwise seen from outside
+
+
+Shape = Sphere | Box | Polyhedron

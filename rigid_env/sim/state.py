@@ -5,8 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .rotation import cross, quat_rotate, quat_to_matrix, rotate_inverse
+
+# What ``state[index]`` accepts on the batch axes: numpy's basic and advanced indices.
+BatchIndex = int | slice | np.ndarray | tuple[int | slice | np.ndarray, ...]
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,11 +47,11 @@ class State:
         """Ω = Rᵀ ω, the angular velocity in body axes."""
         return rotate_inverse(self.rotation, self.angular_velocity)
 
-    def point_position(self, local_point) -> np.ndarray:
+    def point_position(self, local_point: ArrayLike) -> np.ndarray:
         """World position ``x + R r`` of the body-fixed point r (notes: p = x + R r)."""
         return self.position + quat_rotate(self.orientation, np.asarray(local_point, float))
 
-    def point_velocity(self, local_point) -> np.ndarray:
+    def point_velocity(self, local_point: ArrayLike) -> np.ndarray:
         """World velocity ``v + ω × (R r)`` of the body-fixed point r (notes)."""
         arm = quat_rotate(self.orientation, np.asarray(local_point, float))
         return self.linear_velocity + cross(self.angular_velocity, arm)
@@ -58,7 +62,7 @@ class State:
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return (self.position, self.orientation, self.linear_velocity, self.angular_velocity)
 
-    def __getitem__(self, index) -> State:
+    def __getitem__(self, index: BatchIndex) -> State:
         """Index the batch axes: ``state[3]`` is batch element 3 (all bodies)."""
         if not isinstance(index, tuple):
             index = (index,)

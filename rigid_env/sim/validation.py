@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def positive_scalar(value, name: str) -> float:
+def positive_scalar(value: float, name: str) -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -15,7 +16,7 @@ def positive_scalar(value, name: str) -> float:
     return x
 
 
-def nonnegative_scalar(value, name: str) -> float:
+def nonnegative_scalar(value: float, name: str) -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -25,14 +26,14 @@ def nonnegative_scalar(value, name: str) -> float:
     return x
 
 
-def unit_interval(value, name: str) -> float:
+def unit_interval(value: float, name: str) -> float:
     x = nonnegative_scalar(value, name)
     if x > 1:
         raise ValueError(f"{name} must lie in [0, 1], got {value!r}")
     return x
 
 
-def finite_array(value, name: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+def finite_array(value: ArrayLike, name: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """A float64 copy of ``value``; ``shape`` fixes the trailing dimensions (``None`` = any)."""
     try:
         arr = np.array(value, dtype=float)
@@ -47,7 +48,7 @@ def finite_array(value, name: str, shape: tuple[int, ...] | None = None) -> np.n
     return arr
 
 
-def inertia_tensor(value, name: str = "inertia") -> np.ndarray:
+def inertia_tensor(value: ArrayLike, name: str = "inertia") -> np.ndarray:
     """A symmetric positive-definite 3×3 tensor whose principal moments obey I1 + I2 >= I3."""
     inertia = finite_array(value, name, (3, 3))
     if inertia.shape != (3, 3):
