@@ -24,7 +24,7 @@ def l_prism() -> sim.Body:
     """An L-shaped prism, 0.2 m tall (the resting-polyhedron case of the tests)."""
     outline = [(0, 0), (0.3, 0), (0.3, 0.1), (0.1, 0.1), (0.1, 0.3), (0, 0.3)]
     verts = [(x, y, 0.0) for x, y in outline] + [(x, y, 0.2) for x, y in outline]
-    faces = [(5, 4, 3, 2, 1, 0), (6, 7, 8, 9, 10, 11)]
+    faces: list[tuple[int, ...]] = [(5, 4, 3, 2, 1, 0), (6, 7, 8, 9, 10, 11)]
     faces += [(i, (i + 1) % 6, 6 + (i + 1) % 6, 6 + i) for i in range(6)]
     return sim.Body.polyhedron(verts, faces, 1000.0)
 
@@ -34,11 +34,11 @@ def tetrahedron() -> sim.Body:
     return sim.Body.polyhedron(verts, [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)], 1000.0)
 
 
-def cases(settings: sim.SolverSettings):
+def cases(settings: sim.SolverSettings) -> dict[str, tuple[sim.Scene, sim.State]]:
     box = sim.Body.box((0.1, 0.15, 0.2), 1.0)
     down = (0.0, 0.0, -G)
 
-    def resting(body):
+    def resting(body: sim.Body) -> tuple[sim.Scene, sim.State]:
         scene = sim.Scene(
             body, DT, gravity=down, ground=sim.Ground(0.3, 0.5), contact_solver=settings
         )

@@ -24,6 +24,8 @@ physics step), a first-order load error whatever the integrator.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -39,14 +41,16 @@ from . import env_speed
 from .reference import torque_free_exact
 
 FRAMES = 200
-CONFIGS = (
+Config = tuple[str, float, int]  # (integrator, dt, frame_skip)
+Start = tuple[np.ndarray, np.ndarray]  # (q0, ω0 world) per episode
+CONFIGS: tuple[Config, ...] = (
     ("exact", 0.05, 1),
     ("exact4", 0.05, 1),
     ("splitting", 0.01, 5),
     ("splitting", 0.025, 2),  # the env's defaults
 )
 # Configurations also run with the former load model (torque held in world over each step).
-HELD = (("exact", 0.05, 1), ("splitting", 0.01, 5))
+HELD: tuple[Config, ...] = (("exact", 0.05, 1), ("splitting", 0.01, 5))
 
 
 def step_body_torque(
@@ -70,13 +74,13 @@ class _HeldTorqueTask(ReorientTask):
 
 
 def _episodes(
-    config,
+    config: Config,
     n: int,
     seed: int,
     actions: np.ndarray | None,
     frames: int = FRAMES,
     held: bool = False,
-):
+) -> tuple[np.ndarray, Start, ReorientTask]:
     """Orientation (frames + 1, n, 4), start (q0, ω0 world) and the task, for n episodes."""
     integrator, dt, skip = config
     task = (_HeldTorqueTask if held else ReorientTask)(
@@ -92,7 +96,7 @@ def _episodes(
     return np.array(q), start, task
 
 
-def _reference_free(task, start, frames: int) -> np.ndarray:
+def _reference_free(task: ReorientTask, start: Start, frames: int) -> np.ndarray:
     times = np.arange(frames + 1) * task.config.action_period
     moments = np.array(task.principal_moments)
     if not np.allclose(task.body.inertia, np.diag(moments)):
@@ -101,7 +105,7 @@ def _reference_free(task, start, frames: int) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
+def _reference_driven(task: ReorientTask, start: Start, actions: np.ndarray) -> np.ndarray:
     moments = np.diag(task.body.inertia).copy()
     period = task.config.action_period
     out = []
@@ -112,7 +116,7 @@ def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
         for k in range(actions.shape[0]):
             tau = actions[k, i] * task.max_torque  # body frame, held for the frame
 
-            def rhs(_t, y, tau=tau):
+            def rhs(_t: float, y: np.ndarray, tau: np.ndarray = tau) -> np.ndarray:
                 om = y[4:] / moments
                 dq = 0.5 * quat_multiply(y[:4] / np.linalg.norm(y[:4]), np.append(om, 0.0))
                 return np.concatenate((dq, np.cross(y[4:], om) + tau))
@@ -127,7 +131,13 @@ def _reference_driven(task, start, actions: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS, held=HELD) -> list[dict]:
+def accuracy(
+    n: int,
+    seed: int,
+    frames: int = FRAMES,
+    configs: Sequence[Config] = CONFIGS,
+    held: Sequence[Config] = HELD,
+) -> list[dict[str, Any]]:
     """Rows of worst-frame orientation errors: every config in ``configs`` as the env steps,
     and under random actions every config in ``held`` with the former world-held torque."""
     rows = []
@@ -158,9 +168,9 @@ def accuracy(n: int, seed: int, frames: int = FRAMES, configs=CONFIGS, held=HELD
     return rows
 
 
-def speed(config, num_envs: int, seconds: float, seed: int) -> tuple[float, float]:
+def speed(config: Config, num_envs: int, seconds: float, seed: int) -> tuple[float, float]:
     integrator, dt, skip = config
-    kwargs = dict(integrator=integrator, dt=dt, frame_skip=skip)
+    kwargs: dict[str, Any] = dict(integrator=integrator, dt=dt, frame_skip=skip)
     single = gym.make("RigidEnv/Reorient-v0", **kwargs)
     vec = gym.make_vec(
         "RigidEnv/Reorient-v0",
@@ -174,7 +184,7 @@ def speed(config, num_envs: int, seconds: float, seed: int) -> tuple[float, floa
     )
 
 
-def main(argv=None) -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=16)
     parser.add_argument("--num-envs", type=int, default=256)
