@@ -315,7 +315,7 @@ def landing_speed(
     same random tilts and spins, timed after the same 1 s pre-roll (boxes on the ground)."""
     from rigid_env.sim import scenes as sim_scenes
 
-    from .speed import LANDING_PREROLL_S
+    from .scenes import LANDING_PREROLL_S
 
     records = []
     for integrator in INTEGRATORS:

@@ -9,6 +9,8 @@ import numpy as np
 
 from rigid_env import sim
 
+LANDING_PREROLL_S = 1.0  # landing batches are timed after this long: boxes on the ground
+
 # The tumbling box: distinct principal moments (0.0867, 0.0667, 0.0333) kg m²; body y is the
 # intermediate axis. Spun almost about it, it flips every few seconds (Dzhanibekov effect).
 BOX_HALF_EXTENTS = (0.1, 0.2, 0.3)

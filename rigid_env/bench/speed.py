@@ -139,9 +139,6 @@ def _best_time(
     return best
 
 
-LANDING_PREROLL_S = 1.0  # the landing batch is timed after this long: boxes on the ground
-
-
 def scene_cases() -> list[SceneCase]:
     """(name, factory(integrator, dt), initial state (kwargs or (scene, batch) -> State),
     integrators)."""
@@ -161,7 +158,7 @@ def scene_cases() -> list[SceneCase]:
     # on the ground (the contact solver running), the state a training episode spends in.
     def landing_initial(scene: sim.Scene, batch: int) -> sim.State:
         state = landing_scene()[1](batch_shape=(batch,), rng=np.random.default_rng(0))
-        for _ in range(int(round(LANDING_PREROLL_S / scene.dt))):
+        for _ in range(int(round(scenes.LANDING_PREROLL_S / scene.dt))):
             state = scene.step(state)
         return state
 
@@ -454,7 +451,7 @@ def table(result: dict[str, Any]) -> str:
         rows.append(row)
     out = [
         "Body-steps per second (dt = 0.01 s; best of repeated blocks, single process; landing "
-        f"timed after a {LANDING_PREROLL_S:g} s pre-roll, boxes bouncing and resting on the "
+        f"timed after a {scenes.LANDING_PREROLL_S:g} s pre-roll, boxes bouncing and resting on the "
         "ground; two_body_impact: a sphere–box head-on impact, its solver runs only on steps "
         "in contact):",
         "",

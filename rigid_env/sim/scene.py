@@ -26,7 +26,7 @@ from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
 from .pipeline import StageTimer, StepContext, run
 from .rotation import cross, quat_rotate, quat_to_matrix
-from .state import State
+from .state import ORIENTATION_TOLERANCE, State
 from .validation import positive_scalar
 
 INTEGRATORS: tuple[str, ...] = tuple(RECORDS)
@@ -37,9 +37,6 @@ CONTACT_INTEGRATOR = "implicit_gyro"
 # Step implementations (``compiled.backend``); ``backend=None`` reads RIGID_ENV_BACKEND, else
 # "auto": compiled kernels when numba imports and every stage has one, else numpy.
 BACKEND_VARIABLE = "RIGID_ENV_BACKEND"
-# A state's quaternions must have |q| within this of 1 (a step renormalises its copy); a
-# quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
-ORIENTATION_TOLERANCE = 1e-6
 _F64 = np.dtype(np.float64)
 _State_new = object.__new__
 STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")

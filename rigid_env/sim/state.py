@@ -11,6 +11,9 @@ from .rotation import cross, quat_rotate, quat_to_matrix, rotate_inverse
 
 # What ``state[index]`` accepts on the batch axes: numpy's basic and advanced indices.
 BatchIndex = int | slice | np.ndarray | tuple[int | slice | np.ndarray, ...]
+# A state's quaternions must have |q| within this of 1 (a step renormalises its copy); a
+# quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
+ORIENTATION_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,7 +25,7 @@ class State:
 
     Orientations must be unit quaternions. ``Scene.initial_state`` normalises any non-zero
     quaternion; a state built by hand is checked by ``Scene.step`` and the read-outs: |q|
-    within ``scene.ORIENTATION_TOLERANCE`` (1e-6) of 1 is accepted (the step renormalises
+    within ``ORIENTATION_TOLERANCE`` (1e-6) of 1 is accepted (the step renormalises
     its own copy, so e.g. float32 data works), farther off, zero or non-finite is a
     ``ValueError`` naming ``orientation`` (rejected rather than rescaled: a quaternion that
     far from unit is a bug upstream, not rounding).

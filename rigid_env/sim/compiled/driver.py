@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene import ORIENTATION_TOLERANCE
+from ..state import ORIENTATION_TOLERANCE
 from . import layout
 from .registry import ForceKernel, Kernel
 from .steps import BODY_TORQUE
