@@ -82,8 +82,7 @@ def limit_energy(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass = unpack(d)[:8]
-    bd, points, foot, gravity = unpack(d)[11:15]
+    ints, floats, _, _, _, _, shaped, mass, _, _, _, bd, points, foot, gravity = unpack(d)
     has_gravity = ints[I_GRAVITY] != 0
     k = ints[I_K]
     dt = floats[F_DT]
@@ -180,8 +179,7 @@ def separate_contacts(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass = unpack(d)[:8]
-    bd, points, foot, gravity = unpack(d)[11:15]
+    ints, floats, _, _, _, _, shaped, mass, _, _, _, bd, points, foot, gravity = unpack(d)
     has_gravity = ints[I_GRAVITY] != 0
     n = st[0].shape[1]
     x = st[X][e]

@@ -47,7 +47,6 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
     known = np.zeros(size)
     nxt = np.empty(c, np.bool_)
     over = np.empty(c, np.bool_)
-    norm = np.empty(c)
     settled = False
     for _ in range(ROUNDS):
         for i in range(c):
@@ -97,7 +96,6 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             if not (on[i] or budget[i]):
                 t1 = t2 = 0.0
             nt = np.sqrt(t1 * t1 + t2 * t2)
-            norm[i] = nt
             over[i] = (not bound[i]) and (on[i] or budget[i]) and nt > cap * (1 + 1e-12)
             shrink = cap / (nt if nt > 0 else 1.0) if nt > cap else 1.0
             lam[3 * i] = ln
