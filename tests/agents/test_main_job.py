@@ -1,14 +1,12 @@
-"""The main job (``python -m agents``) on both envs with tiny budgets: one table, learning curve
-and clip per env; an interrupt in the second env's training, then ``--resume``, which keeps the
-first env's work and finishes the second."""
+"""The main job (``python -m agents``) on both envs with tiny budgets: an interrupt in the second
+env's training, then ``--resume``, which keeps the first env's work, finishes the second and
+leaves one table, learning curve and clip per env."""
 
 from __future__ import annotations
 
 import json
 from contextlib import contextmanager
 from pathlib import Path
-
-import pytest
 
 from agents import main_job, run_folder
 from rigid_env import cli
@@ -47,26 +45,6 @@ def stop_at_poll(polls: int):
     return stop_on_signal
 
 
-def test_both_envs_get_a_table_a_learning_curve_and_a_clip(tmp_path, capsys):
-    out = tmp_path / "job"
-    assert cli.run(main_job.main, main_job.PROG, [*TINY, "--out", str(out)]) == 0
-    stdout = capsys.readouterr().out
-    record = json.loads((out / main_job.RECORD).read_text())
-    assert record["status"] == "finished" and record["envs"] == list(main_job.JOBS)
-    for env_id in main_job.JOBS:
-        folder = out / main_job.run_name(env_id)
-        for name in ("learning_curve.png", "clip.gif", "best_model.zip", main_job.RECORD):
-            assert (folder / name).is_file(), (env_id, name)
-        table = json.loads((folder / main_job.RECORD).read_text())
-        assert table == record["results"][env_id]
-        policies = [row["policy"] for row in table["rows"]]
-        assert policies == ["random", "zero", "analytic", "PPO (best_model.zip)"]
-        assert all(row["episodes"] == 2 and row["env"] == env_id for row in table["rows"])
-        assert table["throughput"]["env_steps"] == 64 and table["backend"] in ("numpy", "compiled")
-        assert f"{env_id}: 2 episodes from seed 1000" in stdout  # the printed table's title
-    assert stdout.index("Reorient-v0: 2 episodes") < stdout.index("BoxLanding-v0: 2 episodes")
-
-
 def test_interrupt_in_the_second_env_then_resume_keeps_the_first(tmp_path, capsys, monkeypatch):
     out = tmp_path / "job"
     # Reorient: 1 + 32 polls (64 steps of 2 envs); BoxLanding stops at its 11th poll.
@@ -82,9 +60,24 @@ def test_interrupt_in_the_second_env_then_resume_keeps_the_first(tmp_path, capsy
     kept = {name: (first / name).read_bytes() for name in ("best_model.zip", "clip.gif")}
 
     monkeypatch.setattr(main_job, "StopOnSignal", stop_at_poll(10**9))
-    assert cli.run(main_job.main, main_job.PROG, ["--resume", str(out), "--episodes", "2"]) == 0
+    argv = ["--resume", str(out), "--episodes", "2", "--no-progress"]
+    assert cli.run(main_job.main, main_job.PROG, argv) == 0
+    stdout = capsys.readouterr().out
     record = json.loads((out / main_job.RECORD).read_text())
-    assert record["status"] == "finished" and list(record["results"]) == list(main_job.JOBS)
+    assert record["status"] == "finished" and record["envs"] == list(main_job.JOBS)
+    for env_id in main_job.JOBS:  # one table, learning curve and clip per env
+        folder = out / main_job.run_name(env_id)
+        for name in ("learning_curve.png", "clip.gif", "best_model.zip", main_job.RECORD):
+            assert (folder / name).is_file(), (env_id, name)
+        table = json.loads((folder / main_job.RECORD).read_text())
+        assert table == record["results"][env_id]
+        policies = [row["policy"] for row in table["rows"]]
+        assert policies == ["random", "zero", "analytic", "PPO (best_model.zip)"]
+        assert all(row["episodes"] == 2 and row["env"] == env_id for row in table["rows"])
+        assert table["backend"] in ("numpy", "compiled")
+    assert record["results"]["RigidEnv/Reorient-v0"]["throughput"]["env_steps"] == 64
+    # The first env's table is printed again from its record, then the second env's.
+    assert stdout.index("Reorient-v0") < stdout.index("BoxLanding-v0: 2 episodes from seed 1000")
     assert {name: (first / name).read_bytes() for name in kept} == kept  # not trained again
     second = run_folder.read(out / "boxlanding-v0")
     assert second["status"] == "finished" and second["resumed_at"] == [20]
@@ -92,17 +85,6 @@ def test_interrupt_in_the_second_env_then_resume_keeps_the_first(tmp_path, capsy
     capsys.readouterr()
     assert cli.run(main_job.main, main_job.PROG, ["--resume", str(out)]) == cli.EXIT_USAGE
     assert "is finished" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize("env_id", list(main_job.JOBS))
-def test_env_picks_one_env(tmp_path, env_id):
-    out = tmp_path / "job"
-    argv = [*TINY, "--out", str(out), "--env", env_id]
-    assert cli.run(main_job.main, main_job.PROG, argv) == 0
-    record = json.loads((out / main_job.RECORD).read_text())
-    assert record["envs"] == [env_id] and list(record["results"]) == [env_id]
-    others = [e for e in main_job.JOBS if e != env_id]
-    assert not any((out / main_job.run_name(e)).exists() for e in others)
 
 
 def test_overwrite_replaces_a_main_job(tmp_path):
@@ -114,6 +96,8 @@ def test_overwrite_replaces_a_main_job(tmp_path):
     assert cli.run(main_job.main, main_job.PROG, argv) == cli.EXIT_USAGE  # no --overwrite
     assert cli.run(main_job.main, main_job.PROG, [*argv, "--overwrite"]) == 0
     assert run_folder.read(out / "reorient-v0")["status"] == "finished"
+    record = json.loads((out / main_job.RECORD).read_text())  # --env picks one env
+    assert record["envs"] == ["RigidEnv/Reorient-v0"] and not (out / "boxlanding-v0").exists()
 
 
 def test_the_job_folder_name_comes_from_the_env_id():
