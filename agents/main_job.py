@@ -27,6 +27,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from rigid_env import cli
 from rigid_env.cli import UsageError
@@ -285,7 +286,7 @@ def _backend(env_id: str) -> str:
     """Which physics the figures were measured on: the scene's step implementation."""
     from .rollout import make_vec
 
-    env = make_vec(env_id, 1)
+    env: Any = make_vec(env_id, 1)  # a rigid_env vector env: it has a task with a scene
     backend = getattr(env.unwrapped.task.scene, "backend", "numpy")
     env.close()
     return str(backend)
