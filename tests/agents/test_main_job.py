@@ -10,6 +10,7 @@ from pathlib import Path
 
 from agents import main_job, run_folder
 from rigid_env import cli
+from rigid_env.bench.readme import main_job_summary
 
 TINY = [
     "--timesteps",
@@ -78,6 +79,12 @@ def test_interrupt_in_the_second_env_then_resume_keeps_the_first(tmp_path, capsy
     assert record["results"]["RigidEnv/Reorient-v0"]["throughput"]["env_steps"] == 64
     # The first env's table is printed again from its record, then the second env's.
     assert stdout.index("Reorient-v0") < stdout.index("BoxLanding-v0: 2 episodes from seed 1000")
+    # The README renders the records (copied to docs/results): one line per env.
+    lines = main_job_summary(record).splitlines()
+    assert lines[2].startswith("| RigidEnv/Reorient-v0 | PPO | 64 |")
+    assert lines[3].startswith("| RigidEnv/BoxLanding-v0 | PPO |") and len(lines) == 6
+    learned = record["results"]["RigidEnv/BoxLanding-v0"]["rows"][3]["success_rate"]
+    assert lines[3].split(" | ")[-2] == f"{learned:.1%}"
     assert {name: (first / name).read_bytes() for name in kept} == kept  # not trained again
     second = run_folder.read(out / "boxlanding-v0")
     assert second["status"] == "finished" and second["resumed_at"] == [20]
