@@ -418,6 +418,7 @@ class BoxLandingTask(HoldTask):
         corner within ``contact_tolerance`` of the ground), and count a touchdown when the box
         touched the ground after a period in which it did not."""
         touched = np.zeros(self.num_envs, dtype=bool)
+        scene = self.scene
         tolerance, corners, latch = (
             self.config.contact_tolerance,
             self.corners,
@@ -426,6 +427,11 @@ class BoxLandingTask(HoldTask):
 
         def after(state: sim.State, world: np.ndarray) -> None:
             latch(state.position, state.orientation, corners, tolerance, touched, torque, world)
+            # A bounce can begin and end within one physics step (impacts are resolved at
+            # their instant): the contact report's impulses see it when the positions do not.
+            report = scene.report.get("contacts")
+            if report is not None and report.touched is not None:
+                touched[:] |= report.touched
 
         self.state = step_body_torque(self.scene, self.state, torque, self.frame_skip, after)
         # touchdown = touched & ~touching; bounce = touchdown after an earlier one; count it.

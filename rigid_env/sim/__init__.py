@@ -6,6 +6,7 @@ angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
 
 from . import pipeline, rotation
 from .body import Body
+from .contacts import ContactReport, ContactSolverWarning, SolverSettings
 from .integrators import CONTACT_CAPABLE
 from .integrators import RECORDS as INTEGRATOR_RECORDS
 from .model import Ground, Material, Model, Spring
@@ -27,6 +28,8 @@ __all__ = [
     "Box",
     "CONTACT_CAPABLE",
     "CONTACT_INTEGRATOR",
+    "ContactReport",
+    "ContactSolverWarning",
     "DEFAULT_INTEGRATOR",
     "DivergenceError",
     "Ground",
@@ -36,6 +39,7 @@ __all__ = [
     "Model",
     "Polyhedron",
     "Scene",
+    "SolverSettings",
     "Sphere",
     "Spring",
     "Stage",

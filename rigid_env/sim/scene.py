@@ -4,8 +4,8 @@
 ``Scene.stages`` their names: the force stages it was given (gravity, damping, springs), then
 the integrator's parts, with the contact stages between a semi-implicit integrator's velocity
 and position updates. A body tumbling in space has ``stages == ("integrate",)``; a box landing
-on the ground ``("gravity", "integrate_velocity", "collide_ground", "solve_contacts",
-"integrate_position", "restitute")``.
+on the ground ``("gravity", "integrate_velocity", "collide_ground", "assemble_contacts",
+"restitute", "solve_contacts", "limit_energy", "integrate_position", "separate_contacts")``.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from . import contacts as contact_stages
 from . import forces
 from .body import Body
 from .compiled.backend import BACKENDS, driver_for
+from .contacts import SolverSettings
 from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
 from .pipeline import StageTimer, StepContext, run
@@ -71,9 +72,13 @@ class Scene:
         the one in use, ``"numpy"`` or ``"compiled"``.
     timer : a :class:`~rigid_env.sim.pipeline.StageTimer` that accumulates the wall time of
         each stage (also settable later as ``scene.timer``); ``None`` times nothing.
+    contact_solver : a :class:`~rigid_env.sim.contacts.SolverSettings` (iteration cap,
+        tolerance, impact cap of the contact solve); ``None`` takes its defaults.
 
-    After each step, ``scene.report`` holds that step's report (a dict; e.g. a contact solve
-    that stopped at its iteration cap says so there).
+    After each step, ``scene.report`` holds that step's report (a dict). With contacts,
+    ``scene.report["contacts"]`` is a :class:`~rigid_env.sim.contacts.ContactReport`: its
+    ``capped`` counts the batch elements whose solve stopped at a cap instead of converging
+    (also raised as a ``ContactSolverWarning``).
     """
 
     def __init__(
@@ -89,6 +94,7 @@ class Scene:
         contacts: Material | None = None,
         backend: str | None = None,
         timer: StageTimer | None = None,
+        contact_solver: SolverSettings | None = None,
     ):
         if isinstance(bodies, Body):
             bodies = (bodies,)
@@ -118,7 +124,7 @@ class Scene:
         self.model = Model(
             bodies, gravity, ground, springs, linear_damping, angular_damping, contacts
         )
-        between, after = contact_stages.build(self.model, self.dt)
+        between, after = contact_stages.build(self.model, self.dt, contact_solver)
         if integrator is None:
             integrator = CONTACT_INTEGRATOR if between else DEFAULT_INTEGRATOR
         if not isinstance(integrator, str) or integrator not in RECORDS:

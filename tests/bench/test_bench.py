@@ -309,7 +309,9 @@ def test_speed_covers_contact_scenes_and_breakdowns_add_up(runs):
             assert stages == [f"compiled kernel ({' → '.join(info['stages'])})"], name
         else:
             assert stages == list(info["stages"]), name
-    assert doc["stage_breakdown"]["two_body_impact"]["stages"][1:3] == [
+    assert doc["stage_breakdown"]["two_body_impact"]["stages"][1:5] == [
         "collide_pairs",
+        "assemble_contacts",
+        "restitute",
         "solve_contacts",
     ]

@@ -13,7 +13,7 @@ import pytest
 
 from rigid_env import sim
 from rigid_env.sim.contacts.box_box import FAR, box_box
-from rigid_env.sim.contacts.solver import ContactStage
+from rigid_env.sim.contacts.solve import dissipative
 from rigid_env.sim.rotation import quat_exp
 
 G = 9.81
@@ -169,8 +169,8 @@ def test_stack_of_three_at_high_mass_ratio_rests(ratio):
 
 
 def test_tilted_landing_on_a_box_never_gains_kinetic_energy():
-    # ε = 0: the contact pass alone. At its solution ΔKE = λᵀv⁺ − ½λᵀAλ ≤ 0 (solver.py,
-    # ``_dissipative``), so each step's velocities carry no more kinetic energy than the same
+    # ε = 0: the contact pass alone. At its solution ΔKE = λᵀv⁺ − ½λᵀAλ ≤ 0 (solve.py,
+    # ``dissipative``), so each step's velocities carry no more kinetic energy than the same
     # step without contacts (both evaluated at the step's initial orientation, as the solver
     # does); 1e-12 relative is rounding. The 1/K-relaxed Jacobi overshot here: +3e4 relative.
     bodies = [sim.Body.box(HALF, 1.0), sim.Body.box(HALF, 1.0)]
@@ -205,9 +205,9 @@ def test_energy_guard_cuts_a_gaining_impulse_and_keeps_a_solution():
     z1 = np.array([[[1.0], [2.0], [-0.5]]])
     lam = np.ones((1, 2, 3))
     for dz, s_want in ((-z1, 1.0), (-2.5 * z1, 0.4), (3 * z1, 0.0)):
-        out_lam, out_dz = ContactStage._dissipative(lam, np.swapaxes(dz, -1, -2), z1)
+        out_lam, out_dz = dissipative(lam, np.swapaxes(dz, -1, -2)[:, 0], z1[..., 0])
         np.testing.assert_allclose(out_lam, s_want * lam, rtol=1e-15)
-        np.testing.assert_allclose(out_dz, s_want * np.swapaxes(dz, -1, -2), rtol=1e-15)
+        np.testing.assert_allclose(out_dz, s_want * dz[..., 0], rtol=1e-15)
 
 
 def test_box_dropped_flat_onto_a_box_lands_without_spinning():
@@ -288,18 +288,16 @@ def test_batch_equals_single_bitwise():
         batch_shape=(3,),
     )
     singles = [batch[i] for i in range(3)]
-    lowest = np.inf
-    for step in range(200):
+    for k in range(200):
         batch = scene.step(batch)
         singles = [scene.step(s) for s in singles]
         for i in range(3):
             for got, want in zip(batch[i].arrays(), singles[i].arrays(), strict=True):
                 assert np.array_equal(got, want)
-        if step < 100:
-            lowest = min(lowest, batch.position[0, 1, 2])
-    # Element 0 landed on the lower box and was held there (it lands near an edge, spinning:
-    # whether it later tips off is not this test's question).
-    assert 0.45 < lowest < 0.62
+        if k == 60:
+            # Element 0's upper box landed on the lower one (top face at 0.4 m): free fall
+            # would have taken it to 0.75 − ½ g (61 Δt)² = 0.43 m by now.
+            assert batch.position[0, 1, 2] > 0.55
 
 
 def test_unsupported_pairs_name_the_pair():

@@ -36,9 +36,12 @@ def test_contacts_sit_between_the_velocity_and_position_updates():
         "gravity",
         "integrate_velocity",
         "collide_ground",
-        "solve_contacts",
-        "integrate_position",
+        "assemble_contacts",
         "restitute",
+        "solve_contacts",
+        "limit_energy",
+        "integrate_position",
+        "separate_contacts",
     )
 
 
@@ -52,7 +55,7 @@ def test_free_body_pays_nothing_for_forces_or_contacts(monkeypatch):
     for cls in (forces.Gravity, forces.Damping, forces.Springs):
         for method in ("__init__", "__call__", "wrench"):
             monkeypatch.setattr(cls, method, tripwire)
-    for cls in (contacts.GroundContacts, contacts.PairContacts, contacts.ContactStage):
+    for cls in (contacts.GroundContacts, contacts.PairContacts, contacts.Layout):
         monkeypatch.setattr(cls, "__init__", tripwire)
     for name in sim.INTEGRATORS:
         scene = sim.Scene([box(), box()], 0.01, integrator=name)

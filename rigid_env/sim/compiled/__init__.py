@@ -37,11 +37,14 @@ slot  name         shape               meaning (``StepContext`` field)
 N is the flattened batch, n the bodies of one element, C the scene's contact slots (0 without
 contacts). ``contact`` columns: ``ARM`` (3, world vector from the body's centre of mass to the
 point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a float); the
-columns from ``SOLVER`` on belong to the contact solve and restitution (impulses, targets, the
-restitution velocity change...; widen ``CONTACT_WIDTH`` in ``layout.py`` if needed). Ground
+columns from ``SOLVER`` on belong to the contact solve and restitution (``contact_*.py``: the
+rows of J̃, the tangent, the gap after the impacts, their impulse, a body's velocities after the
+velocity update; see ``layout.py``). Scenes whose contacts are all ground contacts run their
+contact stages compiled; a scene with body–body contacts has no kernel for them (numpy). Ground
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
-at the start-of-step pose as numpy does. ``report`` columns: ``ITERATIONS`` (most iterations a
+at the start-of-step pose as numpy does (its order is Gauss–Seidel's visiting order, so both
+backends visit the contacts alike). ``report`` columns: ``ITERATIONS`` (most iterations a
 solve of this element used this step), ``CAPPED`` (1.0 if a solve stopped at its cap) and the
 others in ``layout.py``; a kernel that writes them gives its ``Kernel`` a ``report`` function
 that turns the columns into the ``scene.report`` entries its numpy twin writes.

@@ -21,7 +21,16 @@ import importlib
 
 BACKENDS = ("auto", "numpy", "compiled", "compiled-threads")
 # Modules whose import registers kernels (package-relative); a new kernel module goes here.
-KERNEL_MODULES = ("forces", "integrators", "exact_kernels", "ground")
+KERNEL_MODULES = (
+    "forces",
+    "integrators",
+    "exact_kernels",
+    "ground",
+    "contact_assembly",
+    "contact_impacts",
+    "contact_solve",
+    "contact_energy",
+)
 
 
 def numba_available() -> bool:

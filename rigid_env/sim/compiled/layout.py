@@ -16,9 +16,14 @@ STEP_TUPLE_SIZE = 13
 ARM = 0  # 3 columns: world vector from the centre of mass to the contact point
 GAP = 3  # signed distance along the normal (< 0: penetration)
 BODY = 4  # body index (float)
-# From here on the columns belong to the contact solve.
+# From here on the columns belong to the contact solve (``contact_*.py``).
 SOLVER = 5
-CONTACT_WIDTH = 16
+JT = 5  # 18: the contact's rows of J̃ = J M^(-1/2), normal, t₁, t₂, each (linear 3, angular 3)
+T1 = 23  # 3: the first tangent t₁ (t₂ = n × t₁)
+PATH_GAP = 26  # the gap where the step's impacts left the contact (the detected gap without)
+IMPULSE = 27  # normal impulse of the step's impacts (the friction budget of the solve)
+U1 = 28  # 6, in a body's first slot: its (v, ω) after the velocity update (the energy guard)
+CONTACT_WIDTH = 34
 
 # Columns of ``report`` (the contact solve's; see ``contacts.stages.ContactReport``).
 ENGAGED = 0  # 1.0 if the element had a contact within reach this step
@@ -26,4 +31,6 @@ ITERATIONS = 1  # iterations its solve used
 IMPACTS = 2  # impact events it resolved
 CAPPED = 3  # 1.0 if its solve stopped at a cap instead of converging
 UNPAID_ENERGY = 4  # energy excess (J) the guard could not remove
+TOUCHED = 5  # 1.0 if a contact carried an impulse this step
+ELAPSED = 6  # scratch, not reported: time into the step of the last impact (``Path.elapsed``)
 REPORT_WIDTH = 8

@@ -1,20 +1,41 @@
-"""Contacts: detection against the ground and between bodies, and the impulse solver.
+"""Contacts: detection, assembly, impacts and the solve, as stages of the step pipeline.
 
-``build(model, dt)`` returns the contact stages of a model as two tuples: those that run
-between the integrator's velocity and position updates, and those that run after the position
-update; both empty when it has neither a ground nor body–body contacts (a free body pays
-nothing, a single body on the ground pays no pair detection).
+One idea per module: ``ground``, ``pairs`` and ``box_box`` detect; ``assembly`` builds the rows
+and effective masses; ``restitution`` resolves impacts in time order; ``solve`` is the
+Gauss–Seidel solve to a stated tolerance (:class:`SolverSettings`), ``warm_start`` its
+starting impulses; ``energy`` keeps the step from gaining energy; ``stages`` wires them into
+the pipeline and reports (:class:`ContactReport` in ``scene.report["contacts"]``).
+
+``build(model, dt, settings)`` returns the contact stages of a model as two tuples: those that
+run between the integrator's velocity and position updates, and those that run after the
+position update; both empty when it has neither a ground nor body–body contacts (a free body
+pays nothing, a single body on the ground pays no pair detection).
 """
 
 from __future__ import annotations
 
+from .assembly import Layout
 from .ground import GroundContacts
 from .pairs import PairContacts
-from .solver import ContactStage
-from .stages import CollideGround, CollidePairs, Restitute, SolveContacts
+from .solve import SolverSettings
+from .stages import (
+    AssembleContacts,
+    CollideGround,
+    CollidePairs,
+    ContactReport,
+    ContactSolverWarning,
+    LimitEnergy,
+    Restitute,
+    SeparateContacts,
+    SolveContacts,
+)
 
 
-def build(model, dt) -> tuple[tuple, tuple]:
+def build(model, dt, settings: SolverSettings | None = None) -> tuple[tuple, tuple]:
+    if settings is None:
+        settings = SolverSettings()
+    if not isinstance(settings, SolverSettings):
+        raise ValueError(f"contact_solver must be a SolverSettings, got {settings!r}")
     ground = pairs = None
     stages: list = []
     if model.ground is not None and any(b.shape is not None for b in model.bodies):
@@ -25,8 +46,22 @@ def build(model, dt) -> tuple[tuple, tuple]:
         stages.append(CollidePairs(pairs))
     if not stages:
         return (), ()
-    stages.append(SolveContacts(ContactStage(model, dt, ground, pairs)))
-    return tuple(stages), (Restitute(),)
+    layout = Layout(model, ground, pairs)
+    stages += [
+        AssembleContacts(layout),
+        Restitute(layout, settings),
+        SolveContacts(layout, settings),
+        LimitEnergy(layout),
+    ]
+    return tuple(stages), (SeparateContacts(layout),)
 
 
-__all__ = ["ContactStage", "GroundContacts", "PairContacts", "build"]
+__all__ = [
+    "ContactReport",
+    "ContactSolverWarning",
+    "GroundContacts",
+    "Layout",
+    "PairContacts",
+    "SolverSettings",
+    "build",
+]

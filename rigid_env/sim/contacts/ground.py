@@ -50,7 +50,7 @@ class GroundContacts:
         n_points = max(len(p) for p in points)
         self.k = max(keep)
         padded = [np.concatenate([p, np.repeat(p[:1], n_points - len(p), 0)]) for p in points]
-        self.points = np.stack(padded)  # (G, V, 3) body coordinates
+        self.points = np.stack(padded)[:, :, :]  # (G, V, 3) body coordinates
         self.foot = np.zeros((len(shaped), 1, 3))
         self.foot[:, 0, 2] = -np.array(radii)  # sphere: centre − r ẑ
         self.all_bodies = shaped == list(range(len(bodies)))
@@ -62,7 +62,10 @@ class GroundContacts:
         arm = quat_rotate(q[..., :, None, :], self.points) + self.foot
         gap = x[..., :, None, 2] + arm[..., 2]
         if arm.shape[-2] > self.k:
-            lowest = np.argpartition(gap, self.k - 1, axis=-1)[..., : self.k]
+            # The K lowest in ascending vertex order, ties to the lower index: the contact
+            # order (Gauss–Seidel's visiting order) is the compiled detection's, whatever the
+            # partition algorithm returns.
+            lowest = np.sort(np.argsort(gap, axis=-1, kind="stable")[..., : self.k], axis=-1)
             gap = np.take_along_axis(gap, lowest, axis=-1)
             arm = np.take_along_axis(arm, lowest[..., None], axis=-2)
         return arm, gap

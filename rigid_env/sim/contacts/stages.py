@@ -3,26 +3,72 @@
 Between a semi-implicit integrator's ``integrate_velocity`` and ``integrate_position``:
 
 * ``collide_ground`` / ``collide_pairs`` detect at the start-of-step positions and put their
-  hits in ``ctx.contacts`` (positions flattened to one batch axis, ``(N, n, ·)``);
-* ``solve_contacts`` solves the impulses on the post-force velocities, sets ``ctx.v, ctx.w`` to
-  the main pass's velocities (the positions drift with those) and ``ctx.displacement`` to the
-  penetration correction (which the position update adds);
+  hits in ``ctx.contacts`` (batch flattened to one axis, ``(N, n, ·)``);
+* ``assemble_contacts`` picks the batch elements with a contact within reach this step and
+  builds their rows (``assembly``); the other elements skip every later contact stage;
+* ``restitute`` resolves the step's impacts in time order (``restitution``);
+* ``solve_contacts`` solves the inelastic problem with friction to the stated tolerance
+  (``solve``) and writes ``ctx.report["contacts"]`` (a :class:`ContactReport`);
+* ``limit_energy`` scales the velocities down if the step would end with more energy than it
+  started with (``energy``);
 
 and after ``integrate_position``:
 
-* ``restitute`` applies the restitution pass computed by the solve (velocities only, as
-  Box2D v3's ``applyRestitution`` after its position update).
+* ``separate_contacts`` removes the penetration the linearised step left (rotation over the
+  step) by moving bodies, and pays the potential energy of the lift out of the kinetic energy.
 
-Transitional adapter: the current solver (``solver.ContactStage``) computes the restitution
-velocities together with the main pass, so ``solve_contacts`` keeps them in ``ctx.contacts``
-for ``restitute`` to apply.
+A solve that stops at ``max_iterations`` or ``max_impacts`` instead of converging is counted in
+the report's ``capped`` and raises a :class:`ContactSolverWarning`.
 """
 
 from __future__ import annotations
 
+import warnings
+from dataclasses import dataclass, replace
+
 import numpy as np
 
-from .solver import ContactStage
+from ..rotation import quat_exp, quat_multiply, quat_normalize, quat_to_matrix
+from . import energy
+from .assembly import Layout, assemble
+from .restitution import resolve_impacts
+from .solve import SolverSettings, solve_inelastic
+
+REPORT_KEY = "contacts"
+MAX_HALVINGS = 30  # of the energy guard's velocity factor; then it is 0
+
+
+class ContactSolverWarning(RuntimeWarning):
+    """A contact solve stopped at its iteration or impact cap instead of converging."""
+
+
+@dataclass(frozen=True, eq=False)
+class ContactReport:
+    """What the contact stages did in one step (``scene.report["contacts"]``).
+
+    ``engaged``: batch elements with a contact within reach (the others skip the solve);
+    ``iterations``: the most Gauss–Seidel sweeps any element needed; ``impacts``: the most
+    impact events of any element; ``capped``: elements whose solve stopped at
+    ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
+    ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
+    largest energy excess (J) the energy guard could not take out of the kinetic energy (0
+    in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
+    (N,) bool) whether a contact carried an impulse this step — a touch sensor that also sees
+    a bounce which began and ended within the step (the positions at the step's ends may both
+    be clear of the ground).
+    """
+
+    engaged: int = 0
+    iterations: int = 0
+    impacts: int = 0
+    capped: int = 0
+    tolerance: float = 0.0
+    unpaid_energy: float = 0.0
+    touched: np.ndarray | None = None
+
+    @property
+    def converged(self) -> bool:
+        return self.capped == 0
 
 
 def _flat(ctx):
@@ -34,6 +80,22 @@ def _hits(ctx) -> dict:
     if ctx.contacts is None:
         ctx.contacts = {}
     return ctx.contacts
+
+
+def _velocities(ctx, state=None):
+    """Generalised velocities (N, n, 6) of the context (or of a State)."""
+    n = ctx.model.n_bodies
+    v, w = (ctx.v, ctx.w) if state is None else (state.linear_velocity, state.angular_velocity)
+    return np.concatenate((v.reshape(-1, n, 3), w.reshape(-1, n, 3)), axis=-1)
+
+
+def _write(ctx, idx, u):
+    """Store velocities u (M, n, 6) of the engaged elements ``idx`` back into the context."""
+    n = ctx.model.n_bodies
+    v = np.array(ctx.v).reshape(-1, n, 3)
+    w = np.array(ctx.w).reshape(-1, n, 3)
+    v[idx], w[idx] = u[..., :3], u[..., 3:]
+    ctx.v, ctx.w = v.reshape(ctx.v.shape), w.reshape(ctx.w.shape)
 
 
 class CollideGround:
@@ -56,31 +118,244 @@ class CollidePairs:
         _hits(ctx)["pairs"] = self.pairs.detect(*_flat(ctx))
 
 
-class SolveContacts:
-    name = "solve_contacts"
+class AssembleContacts:
+    """Engaged elements (a gap the step's velocities could close) and their rows."""
 
-    def __init__(self, solver: ContactStage):
-        self.solver = solver
+    name = "assemble_contacts"
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
 
     def __call__(self, ctx) -> None:
-        hits = _hits(ctx)
-        out = self.solver.respond(ctx.start, ctx.v, ctx.w, hits.get("ground"), hits.get("pairs"))
-        hits["bounce"] = None
-        if out is None:
+        hits, lay = _hits(ctx), self.layout
+        arm_a, arm_b, normal, gap = lay.gather(hits.get("ground"), hits.get("pairs"))
+        u1 = _velocities(ctx)
+        vn1 = np.sum(lay.relative_velocity(u1, arm_a, arm_b) * normal, axis=-1)
+        engaged = np.flatnonzero(np.any(gap + ctx.dt * np.minimum(vn1, 0.0) < 0, axis=-1))
+        hits["engaged"] = engaged
+        if len(engaged) == 0:
             return
-        v, w, shift, v_out, w_out = out
-        ctx.v, ctx.w = np.array(v), np.array(w)
-        if np.any(shift):
-            ctx.displacement = shift if ctx.displacement is None else ctx.displacement + shift
-        # The restitution pass changes the velocities by (v_out − v, w_out − w).
-        hits["bounce"] = (v_out - v, w_out - w)
+        x, q = _flat(ctx)
+        hits["u1"] = u1[engaged]
+        sub = (arm_a[engaged], None if arm_b is None else arm_b[engaged])
+        hits["rows"] = assemble(lay, q[engaged], u1[engaged], *sub, normal[engaged], gap[engaged])
 
 
 class Restitute:
+    """Impacts of the step in time order (``restitution``)."""
+
     name = "restitute"
 
+    def __init__(self, layout: Layout, settings: SolverSettings):
+        self.layout, self.settings = layout, settings
+
     def __call__(self, ctx) -> None:
-        bounce = None if ctx.contacts is None else ctx.contacts.get("bounce")
-        if bounce is not None:
-            ctx.v = ctx.v + bounce[0]
-            ctx.w = ctx.w + bounce[1]
+        hits = _hits(ctx)
+        idx = hits["engaged"]
+        if len(idx) == 0:
+            return
+        u0 = _velocities(ctx, ctx.start)[idx]
+        u1 = _velocities(ctx)[idx]
+        u, impulse, events, capped, path = resolve_impacts(
+            self.layout, hits["rows"], u0, u1, ctx.dt, self.settings
+        )
+        hits["impulse"], hits["events"], hits["impact_capped"] = impulse, events, capped
+        hits["path"] = path
+        if np.any(events):
+            _write(ctx, idx, u)
+
+
+class SolveContacts:
+    """The inelastic solve with friction (``solve``) and the step's contact report."""
+
+    name = "solve_contacts"
+
+    def __init__(self, layout: Layout, settings: SolverSettings):
+        self.layout, self.settings = layout, settings
+
+    def __call__(self, ctx) -> None:
+        hits = _hits(ctx)
+        idx = hits["engaged"]
+        settings = self.settings
+        size = ctx.x.reshape(-1, ctx.model.n_bodies, 3).shape[0]
+        touched = np.zeros(size, bool)
+        if len(idx) == 0:
+            ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance, touched=touched)
+            return
+        rows = hits["rows"]
+        impulse = hits.get("impulse")
+        if impulse is None:
+            impulse = np.zeros(rows.gap.shape)
+        path = hits.get("path")
+        u = _velocities(ctx)[idx]
+        if path is None:
+            gap = remaining = None
+        else:
+            gap, remaining = path.gap, ctx.dt - path.elapsed
+            if np.any(path.elapsed > 0):
+                rows = rows.moved(self.layout, u, path.translation)
+        u_in = u
+        u, sweeps, converged = solve_inelastic(
+            self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining
+        )
+        _write(ctx, idx, u)
+        touched[idx] = np.any(impulse > 0, axis=-1) | np.any(u != u_in, axis=(-1, -2))
+        impact_capped = hits.get("impact_capped")
+        capped = ~converged if impact_capped is None else ~converged | impact_capped
+        events = hits.get("events")
+        report = ContactReport(
+            engaged=len(idx),
+            iterations=int(sweeps.max()),
+            impacts=0 if events is None else int(events.max()),
+            capped=int(np.sum(capped)),
+            tolerance=settings.tolerance,
+            touched=touched,
+        )
+        ctx.report[REPORT_KEY] = report
+        if report.capped:
+            warn_capped(stacklevel=5)  # warn_capped ← __call__ ← run ← Scene.step ← the caller
+
+
+def warn_capped(stacklevel: int) -> None:
+    """The :class:`ContactSolverWarning` of a step with a capped solve (both backends)."""
+    warnings.warn(
+        "a contact solve stopped at its cap (SolverSettings.max_iterations or "
+        "max_impacts) instead of converging; scene.report['contacts'] counts the "
+        "elements per step",
+        ContactSolverWarning,
+        stacklevel=stacklevel,
+    )
+
+
+class LimitEnergy:
+    """Before the position update: the step's contact response adds no energy (``energy``)."""
+
+    name = "limit_energy"
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
+
+    def __call__(self, ctx) -> None:
+        hits = _hits(ctx)
+        idx = hits.get("engaged", ())
+        if len(idx) == 0:
+            return
+        model, n, dt = ctx.model, ctx.model.n_bodies, ctx.dt
+        start = ctx.start
+        x0 = start.position.reshape(-1, n, 3)[idx]
+        rot0 = quat_to_matrix(start.orientation.reshape(-1, n, 4)[idx])
+        u0, u1, u = _velocities(ctx, start)[idx], hits["u1"], _velocities(ctx)[idx]
+        pe0 = energy.potential(model, x0)
+        e_start = energy.kinetic(model, rot0, u0) + pe0
+        e_free = energy.energy(model, x0 + dt * u1[..., :3], rot0, u1)
+        # KE at the end orientation exp(Δt ω) q₀ equals KE at q₀ (ω is that rotation's axis).
+        ke = energy.kinetic(model, rot0, u)
+        path = hits.get("path")
+        shift = np.zeros(x0.shape) if path is None else path.displacement(u)
+        # With a path, x_end = x₀ + translation + (Δt − elapsed) f v: PE is still linear in f.
+        base = x0 + shift + (0.0 if path is None else path.elapsed[:, None, None]) * u[..., :3]
+        tail = dt - (0.0 if path is None else path.elapsed)
+        pe_base = energy.potential(model, base) - pe0
+        lin = energy.potential(model, base + tail[:, None, None] * u[..., :3]) - pe0 - pe_base
+        room = np.maximum(e_start, e_free) - pe0 - pe_base
+        f = energy.scale_to(ke, lin, room)
+        # The end configuration's overlap (rotation over the step) lifts the body too: halve
+        # f until the separated end positions fit as well (f = 0 stays at the start).
+        q0 = start.orientation.reshape(-1, n, 4)[idx]
+        for _ in range(MAX_HALVINGS):
+            x_end = base + (f * tail)[:, None, None] * u[..., :3]
+            q_end = quat_normalize(
+                quat_multiply(quat_exp((f * dt)[:, None, None] * u[..., 3:]), q0)
+            )
+            pe_end = energy.potential(model, separated(self.layout, x_end, q_end))
+            over = f * f * ke + pe_end - pe0 - pe_base > room + 1e-12 * np.abs(e_start) + 1e-300
+            if not over.any():
+                break
+            f = np.where(over, 0.5 * f, f)
+        else:
+            f = np.where(over, 0.0, f)
+        hits["rot0"] = rot0
+        if np.any(f < 1):
+            u = u * f[:, None, None]
+            _write(ctx, idx, u)
+        if path is not None and np.any(path.elapsed > 0):
+            # x_end = x₀ + Δt v + displacement, the path's translation − elapsed v.
+            shift = path.displacement(u)
+            full = np.zeros(ctx.x.reshape(-1, n, 3).shape)
+            full[idx] = shift
+            full = full.reshape(ctx.x.shape)
+            ctx.displacement = full if ctx.displacement is None else ctx.displacement + full
+
+
+def separated(lay: Layout, x, q):
+    """Positions (N, n, 3) with the overlap at (x, q) removed: each body on the ground is
+    lifted by its deepest overlap; each body pair is pushed apart along its normal by its
+    deepest overlap, split by mass (momentum unchanged)."""
+    ground = None if lay.ground is None else lay.ground.detect(x, q)
+    pairs = None if lay.pairs is None else lay.pairs.detect(x, q)
+    _, _, normal, gap = lay.gather(ground, pairs)
+    depth = -gap
+    if not np.any(depth > 0):
+        return x
+    x = np.array(x)
+    if lay.n_ground:
+        g = len(lay.ground_bodies)
+        dg = depth[..., : lay.n_ground].reshape(len(x), g, lay.k)
+        x[..., lay.ground_bodies, 2] += np.maximum(np.max(dg, axis=-1), 0.0)
+    if lay.c > lay.n_ground:
+        pushes, offset = [], lay.n_ground
+        for pa, _, _, slots in lay.pairs.groups:
+            sl = slice(offset, offset + len(pa) * slots)
+            offset = sl.stop
+            d = depth[..., sl].reshape(len(x), len(pa), slots)
+            n = normal[..., sl, :][..., ::slots, :]
+            pushes.append(np.maximum(np.max(d, axis=-1), 0.0)[..., None] * n)
+        push = pushes[0] if len(pushes) == 1 else np.concatenate(pushes, axis=-2)
+        x += np.einsum("pn,...pk->...nk", lay.pair_share, push)
+    return x
+
+
+class SeparateContacts:
+    """After the position update: remove what overlap is left (``separated``) and pay the
+    potential energy of the lift out of the kinetic energy."""
+
+    name = "separate_contacts"
+
+    def __init__(self, layout: Layout):
+        self.layout = layout
+
+    def __call__(self, ctx) -> None:
+        hits = _hits(ctx)
+        idx = hits.get("engaged", ())
+        if len(idx) == 0:
+            return
+        x, q = _flat(ctx)
+        x_sub = separated(self.layout, x[idx], q[idx])
+        if x_sub is x[idx] or np.array_equal(x_sub, x[idx]):
+            return
+        model = ctx.model
+        lift = energy.potential(model, x_sub) - energy.potential(model, x[idx])
+        if np.any(lift > 0):
+            u = _velocities(ctx)[idx]
+            factor, unpaid = energy.pay(energy.kinetic(model, hits["rot0"], u), lift)
+            _write(ctx, idx, u * factor[:, None, None])
+            report = ctx.report.get(REPORT_KEY)
+            if report is not None and np.any(unpaid > 0):
+                ctx.report[REPORT_KEY] = replace(report, unpaid_energy=float(np.max(unpaid)))
+        x = np.array(x)
+        x[idx] = x_sub
+        ctx.x = x.reshape(ctx.x.shape)
+
+
+__all__ = [
+    "AssembleContacts",
+    "CollideGround",
+    "CollidePairs",
+    "ContactReport",
+    "ContactSolverWarning",
+    "REPORT_KEY",
+    "Restitute",
+    "LimitEnergy",
+    "SeparateContacts",
+    "SolveContacts",
+]

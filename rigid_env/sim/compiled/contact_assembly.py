@@ -1,0 +1,310 @@
+"""Ground contact rows, mirroring ``contacts.assembly`` for scenes whose contacts are all
+ground contacts (no body–body pairs), and the data every contact kernel shares.
+
+Per contact slot (``layout``): ``JT``, the three rows of J̃ = J M^(-1/2) (normal +z, t₁ along
+the sliding, t₂ = n × t₁) over the 6 coordinates of its body, ``T1``; the Delassus matrix
+A = J̃ J̃ᵀ couples only contacts of one body (its other entries are the exact zeros numpy's
+product gives). Contact velocities are J u = b·v + (r × b)·ω per row, the same quantity as
+numpy's J̃ (M^(1/2) u) to rounding. ``assemble`` also decides whether the element is engaged
+(``ENGAGED``): a contact within reach of the step's velocities; the later contact kernels skip
+an element that is not, as numpy's stages skip it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
+from . import bodies
+from .ground import ground_data
+from .layout import ARM, CONTACT, ENGAGED, GAP, JT, PATH_GAP, REPORT, T1, U1, Q, V, W
+from .registry import Kernel, register
+from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
+
+# Index of the integer parameters (``I``) and float parameters (``F``) in the data tuple.
+I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY = range(6)
+F_DT, F_TOLERANCE = range(2)
+
+
+def contact_data(scene) -> tuple | None:
+    """The data tuple of the contact kernels, or None when the scene has body–body contacts
+    (those step with numpy) or no ground contacts."""
+    stages = {type(s): s for s in scene.pipeline}
+    if CollidePairs in stages or AssembleContacts not in stages or Restitute not in stages:
+        return None
+    lay = stages[AssembleContacts].layout
+    settings = stages[Restitute].settings
+    if lay.pairs is not None or lay.n_ground == 0:
+        return None
+    model = scene.model
+    ground = ground_data(model.bodies)
+    if ground is None:
+        return None
+    points, foot, shaped, _ = ground
+    n = model.n_bodies
+    c = len(lay.a)
+    g = len(shaped)
+    v = points.shape[1]
+    gravity = np.zeros(3) if model.gravity is None else np.asarray(model.gravity, float)
+    head = [
+        g,
+        lay.k,
+        settings.max_iterations,
+        settings.max_impacts,
+        int(settings.start == "particle"),
+        int(model.gravity is not None),
+        c,
+        n,
+        v,
+    ]
+    ints = np.concatenate((head, lay.a, shaped)).astype(np.int64)
+    body = bodies.body_data(model)
+    floats = np.concatenate(
+        [
+            [scene.dt, settings.tolerance],
+            gravity,
+            lay.mu,
+            lay.eps,
+            lay.threshold,
+            model.mass,
+            lay.root_inv_mass,
+            lay.root_inv_inertia.reshape(-1),  # L
+            lay.root_inertia.reshape(-1),  # L⁻¹
+            body.reshape(-1),
+            points.reshape(-1),
+            foot,
+        ]
+    ).astype(float)
+    # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
+    return (ints, floats)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unpack(d):
+    """The views of ``contact_data``'s two arrays: (ints, floats, mu, eps, threshold, owner,
+    shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity)."""
+    ints, floats = d
+    g, c, n, v = ints[I_GROUND], ints[6], ints[7], ints[8]
+    owner = ints[9 : 9 + c]
+    shaped = ints[9 + c : 9 + c + g]
+    o = 5
+    mu = floats[o : o + c]
+    eps = floats[o + c : o + 2 * c]
+    thr = floats[o + 2 * c : o + 3 * c]
+    o += 3 * c
+    mass = floats[o : o + n]
+    rim = floats[o + n : o + 2 * n]
+    o += 2 * n
+    lflat = floats[o : o + 9 * n].reshape((n, 9))
+    linv = floats[o + 9 * n : o + 18 * n].reshape((n, 9))
+    o += 18 * n
+    bd = floats[o : o + bodies.BODY_WIDTH * n].reshape((n, bodies.BODY_WIDTH))
+    o += bodies.BODY_WIDTH * n
+    points = floats[o : o + 3 * g * v].reshape((g, v, 3))
+    o += 3 * g * v
+    foot = floats[o : o + g]
+    gravity = floats[2:5]
+    return (
+        ints,
+        floats,
+        mu,
+        eps,
+        thr,
+        owner,
+        shaped,
+        mass,
+        rim,
+        lflat,
+        linv,
+        bd,
+        points,
+        foot,
+        gravity,
+    )
+
+
+# --- helpers shared by the contact kernels ---------------------------------------------------
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def scale_matrix(q, lflat, b):
+    """R L of body b (``Rows.scale``): maps scaled angular coordinates back to ω."""
+    el = (
+        lflat[b, 0],
+        lflat[b, 1],
+        lflat[b, 2],
+        lflat[b, 3],
+        lflat[b, 4],
+        lflat[b, 5],
+        lflat[b, 6],
+        lflat[b, 7],
+        lflat[b, 8],
+    )
+    return matmul(quat_to_matrix(q), el)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def mat9(a, b):
+    return (a[b, 0], a[b, 1], a[b, 2], a[b, 3], a[b, 4], a[b, 5], a[b, 6], a[b, 7], a[b, 8])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def basis_row(t1, r):
+    """Row r of the contact basis (n, t₁, t₂) of a ground contact, normal +z."""
+    if r == 0:
+        return (0.0, 0.0, 1.0)
+    if r == 1:
+        return t1
+    return cross((0.0, 0.0, 1.0), t1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def load_velocities(st, e, u):
+    """u (n, 6) ← the element's working (v, ω)."""
+    for b in range(u.shape[0]):
+        for i in range(3):
+            u[b, i] = st[V][e, b, i]
+            u[b, 3 + i] = st[W][e, b, i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def store_velocities(st, e, u):
+    for b in range(u.shape[0]):
+        for i in range(3):
+            st[V][e, b, i] = u[b, i]
+            st[W][e, b, i] = u[b, 3 + i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def contact_velocity(cs, c, b, u, r):
+    """Row r (normal, t₁, t₂) of J u at contact slot row ``cs[c]`` on body b."""
+    t1 = (cs[c, T1], cs[c, T1 + 1], cs[c, T1 + 2])
+    basis = basis_row(t1, r)
+    arm = (cs[c, ARM], cs[c, ARM + 1], cs[c, ARM + 2])
+    rxb = cross(arm, basis)
+    return (basis[0] * u[b, 0] + basis[1] * u[b, 1] + basis[2] * u[b, 2]) + (
+        rxb[0] * u[b, 3] + rxb[1] * u[b, 4] + rxb[2] * u[b, 5]
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def delassus(cs, owner, rows, a):
+    """A = J̃ J̃ᵀ (rows·C, rows·C) over the first ``rows`` rows of each contact (3: all,
+    1: the normal block A_nn); contacts of different bodies do not couple."""
+    c = owner.shape[0]
+    for i in range(c):
+        for j in range(c):
+            for r in range(rows):
+                for s in range(rows):
+                    if owner[i] != owner[j]:
+                        a[rows * i + r, rows * j + s] = 0.0
+                        continue
+                    acc = 0.0
+                    for k in range(6):
+                        acc += cs[i, JT + 6 * r + k] * cs[j, JT + 6 * s + k]
+                    a[rows * i + r, rows * j + s] = acc
+
+
+@njit(cache=True, error_model="numpy")
+def add_impulses(st, e, cs, owner, lflat, rim, lam, rows, u, alpha):
+    """u += α M^(-1/2) J̃ᵀ λ (``Rows.velocity_change``) with impulses λ (rows·C); ``rows`` 3
+    (normal, t₁, t₂ per contact) or 1 (normal only)."""
+    n = u.shape[0]
+    for b in range(n):
+        d0 = d1 = d2 = d3 = d4 = d5 = 0.0
+        touched = False
+        for c in range(owner.shape[0]):
+            if owner[c] != b:
+                continue
+            touched = True
+            for r in range(rows):
+                lam_r = lam[rows * c + r]
+                j = JT + 6 * r
+                d0 += lam_r * cs[c, j]
+                d1 += lam_r * cs[c, j + 1]
+                d2 += lam_r * cs[c, j + 2]
+                d3 += lam_r * cs[c, j + 3]
+                d4 += lam_r * cs[c, j + 4]
+                d5 += lam_r * cs[c, j + 5]
+        if not touched:
+            continue
+        q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+        dw = rotate(scale_matrix(q, lflat, b), (d3, d4, d5))
+        u[b, 0] += alpha * (d0 * rim[b])
+        u[b, 1] += alpha * (d1 * rim[b])
+        u[b, 2] += alpha * (d2 * rim[b])
+        for i in range(3):
+            u[b, 3 + i] += alpha * dw[i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def scaled_velocity(st, e, mass, linv, u, z):
+    """z (n, 6) = M^(1/2) u: √m v and L⁻¹ Rᵀ ω (``assembly.scaled_velocity``)."""
+    for b in range(u.shape[0]):
+        q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+        local = rotate_inverse(quat_to_matrix(q), (u[b, 3], u[b, 4], u[b, 5]))
+        zw = rotate(mat9(linv, b), local)
+        root = np.sqrt(mass[b])
+        for i in range(3):
+            z[b, i] = u[b, i] * root
+            z[b, 3 + i] = zw[i]
+
+
+# --- the stage -------------------------------------------------------------------------------
+
+
+@njit(cache=True, error_model="numpy")
+def assemble(e, st, d):
+    """``AssembleContacts``: engaged or not; the rows of J̃ and t₁ per contact."""
+    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat = unpack(d)[:10]
+    dt = floats[F_DT]
+    cs = st[CONTACT][e]
+    c = owner.shape[0]
+    engaged = False
+    for i in range(c):
+        b = owner[i]
+        arm = (cs[i, ARM], cs[i, ARM + 1], cs[i, ARM + 2])
+        w = (st[W][e, b, 0], st[W][e, b, 1], st[W][e, b, 2])
+        spin = cross(w, arm)
+        vz = st[V][e, b, 2] + spin[2]
+        if cs[i, GAP] + dt * min(vz, 0.0) < 0:
+            engaged = True
+    if not engaged:
+        return
+    st[REPORT][e, ENGAGED] = 1.0
+    k = ints[I_K]
+    for g in range(shaped.shape[0]):
+        b = shaped[g]
+        for i in range(3):
+            cs[g * k, U1 + i] = st[V][e, b, i]
+            cs[g * k, U1 + 3 + i] = st[W][e, b, i]
+    for i in range(c):
+        b = owner[i]
+        arm = (cs[i, ARM], cs[i, ARM + 1], cs[i, ARM + 2])
+        w = (st[W][e, b, 0], st[W][e, b, 1], st[W][e, b, 2])
+        spin = cross(w, arm)
+        vx = st[V][e, b, 0] + spin[0]
+        vy = st[V][e, b, 1] + spin[1]
+        # tangents(): the sliding direction, else the perpendicular (1, 0, 0) of n = +z.
+        speed = np.sqrt(vx * vx + vy * vy + 0.0)
+        t1 = (vx / speed, vy / speed, 0.0) if speed > 1e-9 else (1.0, 0.0, 0.0)
+        q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+        scale = scale_matrix(q, lflat, b)
+        for r in range(3):
+            basis = basis_row(t1, r)
+            ang = rotate_inverse(scale, cross(arm, basis))  # (r × b)ᵀ R L
+            for j in range(3):
+                cs[i, JT + 6 * r + j] = basis[j] * rim[b]
+                cs[i, JT + 6 * r + 3 + j] = ang[j]
+        for j in range(3):
+            cs[i, T1 + j] = t1[j]
+        cs[i, PATH_GAP] = cs[i, GAP]
+
+
+@register("assemble_contacts")
+def _assemble_contacts(scene):
+    data = contact_data(scene)
+    if data is None:
+        return None
+    return Kernel(__name__, "assemble", data)

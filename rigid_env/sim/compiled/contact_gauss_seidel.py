@@ -1,0 +1,149 @@
+"""Projected block Gauss–Seidel of one element, mirroring ``contacts.solve.gauss_seidel`` and
+``_disk_step`` (see there for the problem, the stopping rule and the sources).
+
+The tangent blocks A_tt (2×2, symmetric positive definite) are diagonalised by one Jacobi
+rotation (``eig2``: Golub & Van Loan, "Matrix Computations", 4th ed. 2013, §8.5.2, the
+symmetric Schur decomposition), where numpy calls LAPACK's ``eigh``; the two agree to rounding.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ..contacts.solve import NEWTON_STEPS
+
+WORK_PER_CONTACT = 9  # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep
+
+
+@njit(cache=True, error_model="numpy")
+def eig2(a, b, c):
+    """Eigen-decomposition of [[a, b], [b, c]]: (e₀, e₁, q₀₀, q₀₁, q₁₀, q₁₁), the columns of
+    Q = [[q₀₀, q₀₁], [q₁₀, q₁₁]] the unit eigenvectors of e₀ and e₁."""
+    if b == 0.0:
+        return a, c, 1.0, 0.0, 0.0, 1.0
+    tau = (c - a) / (2.0 * b)
+    # tan θ of the rotation that zeroes b: the smaller root of t² + 2τt − 1 = 0.
+    root = math.hypot(1.0, tau)
+    t = 1.0 / (tau + root) if tau >= 0 else -1.0 / (-tau + root)
+    cs = 1.0 / math.sqrt(1.0 + t * t)
+    sn = t * cs
+    return a - t * b, c + t * b, cs, sn, -sn, cs
+
+
+@njit(cache=True, error_model="numpy")
+def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
+    """``solve._disk_step`` for one contact: the tangent impulse minimising the contact's
+    kinetic energy over the disk |λ_t| ≤ cap (Moré & Sorensen's secular equation)."""
+    r0 = (a00 * l0 + a01 * l1) - v0
+    r1 = (a01 * l0 + a11 * l1) - v1
+    p0 = q00 * r0 + q10 * r1  # Qᵀ rhs
+    p1 = q01 * r0 + q11 * r1
+    i0 = p0 / e0
+    i1 = p1 / e1
+    norm = math.sqrt(i0 * i0 + i1 * i1)
+    if not norm > cap:
+        return q00 * i0 + q01 * i1, q10 * i0 + q11 * i1
+    if cap <= 1e-12 * norm:  # radial: the secular root would lie beyond floating range
+        f = cap / (norm if norm > 0 else 1.0)
+        d0, d1 = i0 * f, i1 * f
+        return q00 * d0 + q01 * d1, q10 * d0 + q11 * d1
+    gamma = 0.0
+    p20 = p0 * p0
+    p21 = p1 * p1
+    safe_cap = cap if cap > 0 else 1.0
+    for _ in range(NEWTON_STEPS):
+        d0 = e0 + gamma
+        d1 = e1 + gamma
+        s0 = p20 / (d0 * d0)
+        s1 = p21 / (d1 * d1)
+        f = s0 + s1
+        fp = (s0 / d0) + (s1 / d1)
+        root = math.sqrt(f)
+        psi = 1.0 / (root if root > 0 else 1.0) - 1.0 / safe_cap
+        step = psi * f * root / (fp if fp > 0 else 1.0)
+        gamma = max(gamma - step, 0.0)
+        if abs(step) <= 1e-15 * gamma:
+            break
+    d0 = p0 / (e0 + gamma)
+    d1 = p1 / (e1 + gamma)
+    size = math.sqrt(d0 * d0 + d1 * d1)
+    f = cap / (size if size > 0 else 1.0)  # exactly on the circle
+    d0 *= f
+    d1 *= f
+    return q00 * d0 + q01 * d1, q10 * d0 + q11 * d1
+
+
+@njit(cache=True, error_model="numpy")
+def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, work):
+    """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
+    (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
+    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats. Returns (sweeps,
+    converged)."""
+    c = target.shape[0]
+    size = r * c
+    scale = 0.0
+    for i in range(size):
+        scale = max(scale, abs(free[i]))
+    for i in range(c):
+        if math.isfinite(target[i]):
+            scale = max(scale, abs(target[i]))
+    scale = max(scale, 1e-300)
+    eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
+    if r == 3:
+        for i in range(c):
+            j = 3 * i
+            e0, e1, q00, q01, q10, q11 = eig2(a[j + 1, j + 1], a[j + 2, j + 1], a[j + 2, j + 2])
+            eig[i, 0], eig[i, 1], eig[i, 2] = e0, e1, q00
+            eig[i, 3], eig[i, 4], eig[i, 5] = q01, q10, q11
+    before = work[6 * c : 6 * c + size]
+    for sweep in range(1, max_iterations + 1):
+        for k in range(size):
+            before[k] = lam[k]
+        for i in range(c):
+            j = r * i
+            # The contact's velocities before its update (all its rows), as numpy's einsum.
+            acc0 = 0.0
+            acc1 = 0.0
+            acc2 = 0.0
+            for k in range(size):
+                acc0 += a[j, k] * lam[k]
+            if r == 3:
+                for k in range(size):
+                    acc1 += a[j + 1, k] * lam[k]
+                    acc2 += a[j + 2, k] * lam[k]
+            vn = free[j] + acc0
+            ln_old = lam[j]
+            ln = max(ln_old - (vn - target[i]) * (1.0 / a[j, j]), 0.0)
+            lam[j] = ln
+            if r == 3:
+                dn = ln - ln_old
+                vt1 = (free[j + 1] + acc1) + a[j + 1, j] * dn
+                vt2 = (free[j + 2] + acc2) + a[j + 2, j] * dn
+                lam[j + 1], lam[j + 2] = disk_step(
+                    a[j + 1, j + 1],
+                    a[j + 2, j + 1],
+                    a[j + 2, j + 2],
+                    eig[i, 0],
+                    eig[i, 1],
+                    eig[i, 2],
+                    eig[i, 3],
+                    eig[i, 4],
+                    eig[i, 5],
+                    lam[j + 1],
+                    lam[j + 2],
+                    vt1,
+                    vt2,
+                    mu[i] * (ln + extra[i]),
+                )
+        # The sweep's effect on the contact velocities, A Δλ.
+        change = 0.0
+        for i in range(size):
+            acc = 0.0
+            for k in range(size):
+                acc += a[i, k] * (lam[k] - before[k])
+            change = max(change, abs(acc))
+        if change <= tolerance * scale:
+            return sweep, True
+    return max_iterations, False

@@ -1,0 +1,175 @@
+"""Impacts of one element in time order, mirroring ``contacts.restitution.resolve_impacts``
+(ground contacts; see there for the event rule, the step-mean targets and the path).
+
+The path's translation accumulates in the step tuple's ``DISPLACEMENT`` (per body, zero at the
+start); ``limit_energy`` turns it into the position update's displacement (``Path.displacement``).
+The gaps where the impacts left the contacts go to ``PATH_GAP``, the impulses to ``IMPULSE``,
+the time of the last event to the report's ``ELAPSED``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .contact_assembly import (
+    F_DT,
+    F_TOLERANCE,
+    I_MAX_IMPACTS,
+    I_MAX_ITERATIONS,
+    add_impulses,
+    contact_data,
+    contact_velocity,
+    delassus,
+    load_velocities,
+    scaled_velocity,
+    store_velocities,
+    unpack,
+)
+from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
+from .layout import (
+    CAPPED,
+    CONTACT,
+    DISPLACEMENT,
+    ELAPSED,
+    ENGAGED,
+    IMPACTS,
+    IMPULSE,
+    PATH_GAP,
+    REPORT,
+    V0,
+    W0,
+)
+from .registry import Kernel, register
+
+
+@njit(cache=True, error_model="numpy")
+def restitute(e, st, d):
+    """``Restitute`` for one engaged element."""
+    report = st[REPORT]
+    if report[e, ENGAGED] == 0.0:
+        return
+    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
+    c = owner.shape[0]
+    any_elastic = False
+    for i in range(c):
+        if eps[i] > 0:
+            any_elastic = True
+    if not any_elastic:
+        return
+    dt = floats[F_DT]
+    tolerance = floats[F_TOLERANCE]
+    max_iterations = ints[I_MAX_ITERATIONS]
+    max_impacts = ints[I_MAX_IMPACTS]
+    cs = st[CONTACT][e]
+    disp = st[DISPLACEMENT]
+    n = st[0].shape[1]
+    # One scratch allocation of floats and one of flags, carved into views.
+    buf = np.empty(30 * n + 6 * c + c * c + WORK_PER_CONTACT * c)
+    u = buf[: 6 * n].reshape((n, 6))
+    u0 = buf[6 * n : 12 * n].reshape((n, 6))
+    z = buf[12 * n : 18 * n].reshape((n, 6))
+    dz = buf[18 * n : 24 * n].reshape((n, 6))
+    du = buf[24 * n : 30 * n].reshape((n, 6))
+    o = 30 * n
+    half = buf[o : o + c]
+    vn = buf[o + c : o + 2 * c]
+    tau = buf[o + 2 * c : o + 3 * c]
+    goal = buf[o + 3 * c : o + 4 * c]
+    lam = buf[o + 4 * c : o + 5 * c]
+    none = buf[o + 5 * c : o + 6 * c]
+    o += 6 * c
+    a_nn = buf[o : o + c * c].reshape((c, c))
+    work = buf[o + c * c :]
+    flags = np.zeros(3 * c, np.bool_)
+    struck, eligible, hit = flags[:c], flags[c : 2 * c], flags[2 * c :]
+    none[:] = 0.0
+    for b in range(n):
+        for j in range(3):
+            u0[b, j] = st[V0][e, b, j]
+            u0[b, 3 + j] = st[W0][e, b, j]
+    load_velocities(st, e, u)
+    for i in range(c):  # s: the normal part of half the step's non-contact velocity change
+        vn0 = contact_velocity(cs, i, owner[i], u0, 0)
+        vn1 = contact_velocity(cs, i, owner[i], u, 0)
+        half[i] = 0.5 * (vn1 - vn0)
+    elapsed = 0.0
+    events = 0
+    for _ in range(max_impacts + 1):
+        first = math.inf
+        for i in range(c):
+            vn[i] = contact_velocity(cs, i, owner[i], u, 0)
+            g = cs[i, PATH_GAP]
+            close = max(g, 0.0) / (-vn[i] if vn[i] < 0 else 1.0)  # time to close
+            at = min(elapsed + close, dt)
+            # impact_targets: instantaneous velocity at the closing, Newton's law on it.
+            rate = 2.0 * half[i] / dt
+            w = vn[i] + rate * (at - 0.5 * dt)
+            speed = max(-w, 0.0)
+            goal[i] = eps[i] * speed + rate * (0.5 * dt - at)
+            eligible[i] = eps[i] > 0 and vn[i] < 0 and speed > thr[i] and not struck[i]
+            tau[i] = close if eligible[i] else math.inf
+            first = min(first, tau[i])
+        if not first < dt - elapsed:
+            break
+        if events >= max_impacts:
+            report[e, CAPPED] = 1.0
+            break
+        for i in range(c):
+            cs[i, PATH_GAP] = cs[i, PATH_GAP] + first * vn[i]
+        elapsed += first
+        for b in range(n):
+            for j in range(3):
+                disp[e, b, j] += first * u[b, j]
+        # Contacts closing together, and the other contacts of their bodies closing within
+        # one step of the event, are struck together.
+        for i in range(c):
+            hit[i] = eligible[i] and tau[i] <= first * (1 + 1e-9) + 1e-15
+        for i in range(c):
+            if hit[i] or not eligible[i] or not tau[i] < first + dt:
+                continue
+            for j in range(c):
+                if hit[j] and owner[j] == owner[i]:
+                    hit[i] = True
+                    break
+        for i in range(c):
+            struck[i] = struck[i] or hit[i]
+            if not hit[i]:
+                goal[i] = -math.inf
+            lam[i] = 0.0
+        if events == 0:
+            delassus(cs, owner, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
+        gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work)
+        du[:] = 0.0
+        add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
+        scaled_velocity(st, e, mass, linv, u, z)
+        scaled_velocity(st, e, mass, linv, du, dz)
+        # The largest α ∈ [0, 1] with |z + α dz| ≤ |z|: the event adds no kinetic energy.
+        quad = 0.0
+        lin = 0.0
+        for b in range(n):
+            for j in range(6):
+                quad += dz[b, j] * dz[b, j]
+                lin += z[b, j] * dz[b, j]
+        alpha = -2.0 * lin / quad if quad > 0 else 1.0
+        alpha = min(max(alpha, 0.0), 1.0)
+        for b in range(n):
+            for j in range(6):
+                u[b, j] = u[b, j] + alpha * du[b, j]
+        for i in range(c):
+            cs[i, IMPULSE] += alpha * lam[i]
+        events += 1
+    report[e, IMPACTS] = events
+    report[e, ELAPSED] = elapsed
+    if events:
+        store_velocities(st, e, u)
+
+
+@register("restitute")
+def _restitute(scene):
+    data = contact_data(scene)
+    if data is None:
+        return None
+    return Kernel(__name__, "restitute", data)

@@ -1,0 +1,163 @@
+"""Restitution: impacts resolved one after another in time order within the step.
+
+A semi-implicit step stores v₁ ≈ v(t₀ + Δt/2): velocities are step means, positions follow
+x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inelastic solve
+(``solve.py``), each at the time its contact closes:
+
+1. Per contact, its gap d (at the step's start, linearised: d + τ v_n later) closes after
+   τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
+   the material's threshold, not yet struck this step) is the next event; all impact contacts
+   closing at that instant, and those of the same manifold (body on the ground, body pair)
+   closing within one step of it (a box landing flat or nearly so: four corners), are struck
+   together, each with its own closing time (at most the step's end).
+2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
+   only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
+   so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
+   moves, reaches the third, …) and the loop goes on until no impact falls within the step
+   (or ``max_impacts``, reported).
+
+Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ up to the last
+event, then the rest of the step with the final velocity (``Path``; the position update adds
+the difference to x₀ + Δt v as its displacement). A ball a Newton's cradle sets moving
+mid-step travels only the rest of the step, and the inelastic solve keeps the gaps where the
+impacts left them, over the remaining time. Impulses act where the bodies are at the event
+(``Rows.moved``): a pair's impulses at the features' midpoint there, so angular momentum is
+exact.
+
+Targets. Semi-implicit Euler under a constant non-contact acceleration a (gravity) stores
+step-mean velocities: the instantaneous normal velocity at a time t into the step is
+w = v_n + a (t − Δt/2). Newton's law acts on it at the closing, w⁺ = −ε w, and the stored
+velocity after the event is the step-mean of the outgoing motion, v_n⁺ = −ε w + a (Δt/2 − t).
+With the path above, the steps after a bounce sample the outgoing parabola to O(a Δt²):
+apexes fall as ε²ᵏ h whatever the impact's phase within the step.
+
+Energy. Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] that keeps the
+kinetic energy from growing (Newton's law at several simultaneous contacts can add energy: a
+tumbling box with ε = 1); α = min(1, −2 z·dz / |dz|²) in z = M^(1/2) u coordinates. The step's
+total energy is guarded after the solve (``energy``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .assembly import scaled_velocity
+from .solve import gauss_seidel
+
+_OUT = -np.inf  # normal target of a contact out of play in an event
+
+
+def impact_targets(vn, s, t, eps, dt):
+    """Impact speeds (≥ 0) and post-impact normal velocities of contacts approaching with
+    stored normal velocity ``vn`` and closing at time ``t`` into the step; ``s`` is the
+    normal part of half the step's non-contact velocity change (a Δt / 2)."""
+    rate = 2.0 * s / dt  # the normal acceleration a
+    w = vn + rate * (t - 0.5 * dt)  # instantaneous velocity at the closing
+    speed = np.maximum(-w, 0.0)
+    return speed, eps * speed + rate * (0.5 * dt - t)
+
+
+def resolve_impacts(layout, rows, u0, u1, dt, settings):
+    """Impacts of the step in time order. Returns ``(u, impulse, events, capped, path)``: the
+    velocities after them (N, n, 6), the normal impulse each contact received (N, C), the
+    number of events (N,), whether an element still had impacts at ``max_impacts``, and the
+    :class:`Path` the bodies took."""
+    size, c = rows.gap.shape
+    impulse = np.zeros((size, c))
+    events = np.zeros(size, int)
+    capped = np.zeros(size, bool)
+    path = np.zeros(u1.shape[:-1] + (3,))
+    elapsed = np.zeros(size)
+    gap = np.array(rows.gap)
+    if not np.any(layout.eps > 0):
+        return u1, impulse, events, capped, Path(path, elapsed, gap)
+    vn0 = rows.velocity(u0, layout)[..., 0]
+    vn1 = rows.velocity(u1, layout)[..., 0]
+    s = 0.5 * (vn1 - vn0)
+    u = np.array(u1)
+    struck = np.zeros((size, c), bool)
+    idx = np.arange(size)
+    for _ in range(settings.max_impacts + 1):
+        sub = rows.take(idx) if len(idx) < size else rows
+        vn = sub.velocity(u[idx], layout)[..., 0]
+        g = gap[idx]
+        close = np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0)  # time to close
+        at = np.minimum(elapsed[idx][:, None] + close, dt)
+        speed, target = impact_targets(vn, s[idx], at, layout.eps, dt)
+        eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
+        tau = np.where(eligible, close, np.inf)
+        first = np.min(tau, axis=-1)
+        going = first < dt - elapsed[idx]
+        if not going.any():
+            break
+        if events[idx].max(initial=0) >= settings.max_impacts:
+            capped[idx[going]] = True
+            break
+        keep = np.flatnonzero(going)
+        idx, vn, tau, target, g = idx[keep], vn[keep], tau[keep], target[keep], g[keep]
+        eligible, first = eligible[keep], first[keep]
+        g = g + first[:, None] * vn
+        gap[idx] = g
+        elapsed[idx] += first
+        path[idx] += first[:, None, None] * u[idx][..., :3]
+        # The impulses act where the bodies are now (pairs: the features' midpoint there).
+        sub = rows.take(idx).moved(layout, u[idx], path[idx])
+        a_sub = sub.normal_delassus
+        # Contacts closing together (within a relative 1e-9 of the event's time), and the other
+        # contacts of their manifolds that close within one step of it: the step cannot order
+        # one body's corners on one surface closer than Δt, so they are struck together (a box
+        # landing nearly flat bounces like a flat one instead of rocking from edge to edge).
+        hit = eligible & (tau <= first[:, None] * (1 + 1e-9) + 1e-15)
+        same = layout.manifold[:, None] == layout.manifold[None, :]  # (C, C)
+        struck_manifold = (hit.astype(float) @ same) > 0
+        hit |= eligible & struck_manifold & (tau < (first + dt)[:, None])
+        struck[idx] |= hit
+        lam_n, _, _ = gauss_seidel(
+            a_sub,
+            vn[..., None],
+            np.where(hit, target, _OUT),
+            layout.mu,
+            np.zeros((len(idx), c, 1)),
+            settings,
+        )
+        lam = np.zeros((len(idx), c, 3))
+        lam[..., 0] = lam_n[..., 0]
+        du = sub.velocity_change(lam, layout)
+        ui = u[idx]
+        z = scaled_velocity(layout, ui, sub.scale)[..., 0]
+        dz = scaled_velocity(layout, du, sub.scale)[..., 0]
+        alpha = _energy_step(z, dz)
+        u[idx] = ui + alpha[:, None, None] * du
+        impulse[idx] += alpha[:, None] * lam_n[..., 0]
+        events[idx] += 1
+    return u, impulse, events, capped, Path(path, elapsed, gap)
+
+
+@dataclass
+class Path:
+    """Where the impacts left the bodies: ``translation`` (N, n, 3) travelled up to the last
+    event, at time ``elapsed`` (N,) into the step, with the contacts' gaps ``gap`` (N, C)
+    there. The step then ends with x = x₀ + translation + (Δt − elapsed) v: a ball that a
+    Newton's cradle sets moving mid-step travels only the rest of the step, and the inelastic
+    solve keeps the gaps from ``gap`` over the remaining time."""
+
+    translation: np.ndarray
+    elapsed: np.ndarray
+    gap: np.ndarray
+
+    def displacement(self, u):
+        """The position update's correction to x₀ + Δt v: translation − elapsed v, (N, n, 3)."""
+        return self.translation - self.elapsed[:, None, None] * u[..., :3]
+
+
+def _energy_step(z, dz):
+    """Largest α ∈ [0, 1] with ½|z + α dz|² ≤ ½|z|²: the impulse adds no kinetic energy."""
+    quad = np.sum(dz * dz, axis=-1)
+    lin = np.sum(z * dz, axis=-1)
+    alpha = np.where(quad > 0, -2.0 * lin / np.where(quad > 0, quad, 1.0), 1.0)
+    return np.clip(alpha, 0.0, 1.0)
+
+
+__all__ = ["impact_targets", "resolve_impacts"]
