@@ -1,24 +1,37 @@
-"""The main job (``python -m agents``): train the default baseline and compare it.
+"""The main job (``python -m agents``): train a baseline on each env and compare it.
 
-1. train PPO on ``RigidEnv/Reorient-v0`` with ``agents/hyperparams/ppo.yml`` (progress bar,
-   periodic seeded evaluation and checkpoints, best model kept);
+For each env of :data:`JOBS` in turn (``RigidEnv/Reorient-v0``, then ``RigidEnv/BoxLanding-v0``;
+``--env`` picks one):
+
+1. train its algorithm with ``agents/hyperparams/<algo>.yml`` into the run folder
+   ``OUT/<env>`` (progress bar, periodic seeded evaluation and checkpoints, best model kept,
+   ``learning_curve.png``);
 2. evaluate random, zero-torque, the analytic controller and the learned policy on the same
-   seeded episodes and print the table;
-3. write the learning curve (by step 1) and a clip of the learned policy.
+   seeded episodes, print the table and write it to ``OUT/<env>/main_job.json``;
+3. write a clip of the learned policy (``OUT/<env>/clip.gif``).
 
-The training arguments are those of ``agents.train``: an existing run folder is refused unless
-``--overwrite``; ``--resume RUN_DIR`` continues an interrupted main job's training and then runs
-steps 2 and 3. Ctrl-C during training saves a checkpoint and exits with status 130; a mistake in
-the arguments exits with status 2 and one line on stderr, before any work.
+``OUT`` is ``--out`` (default a fresh ``runs/main-<time>``); its ``main_job.json`` records the
+settings, the status and every env's table. The training arguments are those of
+``agents.train`` and apply to every env. An existing main job folder is refused unless
+``--overwrite``; ``--resume OUT`` continues an interrupted one with its own settings: an env
+whose training finished keeps it, an interrupted one continues from its checkpoint, one not
+started starts, and every env whose table is missing is then evaluated. Ctrl-C during training
+saves a checkpoint and exits with status 130; a mistake in the arguments exits with status 2
+and one line on stderr, before any work.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 from rigid_env import cli
+from rigid_env.cli import UsageError
 from rigid_env.files import write_json
 
 from . import run_folder
@@ -30,15 +43,130 @@ from .evaluate import (
     table_document,
     write_gif,
 )
+from .plan import make_plan
+from .train import resume, train
 from .train_cli import (
     EXIT_CODES,
+    TRAINING_FLAGS,
     StopOnSignal,
     add_training_arguments,
-    check_training_arguments,
-    run_training,
+    parse_overrides,
 )
 
 PROG = "python -m agents"
+# The envs the main job trains, in order, with the algorithm of each (``--algo`` overrides).
+JOBS = {"RigidEnv/Reorient-v0": "ppo", "RigidEnv/BoxLanding-v0": "ppo"}
+RECORD = "main_job.json"  # in OUT (the job) and in each env's run folder (that env's table)
+SETTINGS = ("timesteps", "seed", "n_envs", "overrides", "checkpoint_every", "algo")
+
+
+def run_name(env_id: str) -> str:
+    """The run folder of ``env_id`` inside the main job's folder: ``reorient-v0``."""
+    return env_id.split("/")[-1].lower()
+
+
+def default_out() -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    out, k = Path("runs") / f"main-{stamp}", 1
+    while out.exists():
+        out, k = Path("runs") / f"main-{stamp}-{k}", k + 1
+    return out
+
+
+def check_new(out: Path, overwrite: bool) -> None:
+    """UsageError unless a new main job may be written to ``out``; changes nothing."""
+    if out.is_dir() and any(out.iterdir()):
+        if (out / run_folder.RUN_JSON).is_file():
+            raise UsageError(
+                f"--out: {out} already holds a run of agents.train; expected a new or empty "
+                "folder (or a main job's, with --overwrite)"
+            )
+        if not (out / RECORD).is_file():
+            raise UsageError(
+                f"--out: {out} is not empty and holds no {RECORD}; expected a new or empty folder"
+            )
+        if not overwrite:
+            raise UsageError(
+                f"--out: {out} already holds a run of the main job; pass --resume {out} to "
+                "continue it or --overwrite to replace it"
+            )
+        for env_id in JOBS:  # what --overwrite replaces must be the job's own runs
+            run_folder.check_new(out / run_name(env_id), overwrite=True)
+    else:
+        run_folder.check_new(out, overwrite=False)  # a file, or a place that cannot be made
+
+
+def read_record(out: str | Path) -> dict:
+    """The job record of the main job folder ``out`` (UsageError when missing or unreadable)."""
+    path = Path(out) / RECORD
+    if not path.is_file():
+        raise UsageError(f"--resume: {out} holds no {RECORD}; expected a main job's folder")
+    try:
+        record = json.loads(path.read_text())
+        envs, settings = list(record["envs"]), dict(record["settings"])
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as error:
+        raise UsageError(f"--resume: {path} is unreadable ({error})") from None
+    if not envs or any(e not in JOBS for e in envs) or set(SETTINGS) - set(settings):
+        raise UsageError(f"--resume: {path} names no known envs or lacks settings")
+    return record
+
+
+def check_arguments(args: argparse.Namespace) -> dict:
+    """Every check the job will make, done now (UsageError); returns the job record to run."""
+    if args.resume is not None:
+        given = [f"--{f.replace('_', '-')}" for f in TRAINING_FLAGS if getattr(args, f) is not None]
+        if given:
+            raise UsageError(
+                f"--resume continues OUT with the settings in its {RECORD}; drop {given}"
+            )
+        record = read_record(args.resume)
+        if record.get("status") == "finished":
+            raise UsageError(f"--resume: {args.resume} is finished; expected an interrupted job")
+        cli.writable_dir(args.resume, "--resume")
+        for env_id in record["envs"]:  # an interrupted run must be resumable from its files
+            folder = Path(args.resume) / run_name(env_id)
+            status = _run_status(folder)
+            if status in run_folder.RESUMABLE and (folder / run_folder.CHECKPOINT).is_file():
+                run_folder.read_resumable(folder)
+        record["out"] = str(args.resume)
+        return record
+    out = Path(args.out) if args.out is not None else default_out()
+    check_new(out, args.overwrite)
+    envs = [args.env] if args.env is not None else list(JOBS)
+    settings = {
+        "algo": args.algo,
+        "timesteps": args.timesteps,
+        "seed": 0 if args.seed is None else args.seed,
+        "n_envs": args.n_envs,
+        "overrides": parse_overrides(args.set or []),
+        "checkpoint_every": args.checkpoint_every,
+    }
+    for env_id in envs:
+        make_plan(
+            env_id,
+            _algo(settings, env_id),
+            settings["timesteps"],
+            settings["seed"],
+            settings["n_envs"],
+            settings["overrides"],
+            checkpoint_every=settings["checkpoint_every"],
+        )
+    return {"out": str(out), "envs": envs, "settings": settings, "status": "new"}
+
+
+def _algo(settings: dict, env_id: str) -> str:
+    return settings["algo"] or JOBS.get(env_id, "ppo")
+
+
+def _run_status(folder: Path) -> str | None:
+    """The status in ``folder``'s run.json (None when no run was started there)."""
+    if not (folder / run_folder.RUN_JSON).is_file():
+        return None
+    return run_folder.read(folder).get("status", "finished")
+
+
+def _write_record(out: Path, record: dict) -> None:
+    write_json(out / RECORD, {k: v for k, v in record.items() if k != "out"}, indent=2)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -47,27 +175,93 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--episodes", type=cli.positive_int, default=DEFAULT_EPISODES)
     parser.add_argument("--eval-seed", type=cli.nonnegative_int, default=DEFAULT_SEED)
     args = parser.parse_args(argv)
-    check_training_arguments(args)
+    record = check_arguments(args)
 
     start = time.perf_counter()
-    if args.resume is not None:
-        record = run_folder.read(args.resume)
-        print(f"== 1/3 resuming the training in {args.resume}", flush=True)
-    else:
-        record = {"env_id": args.env or "RigidEnv/Reorient-v0", "algo": args.algo or "ppo"}
-        print(f"== 1/3 training {record['algo'].upper()} on {record['env_id']}", flush=True)
-    env_id, algo = record["env_id"], record["algo"]
-    with StopOnSignal() as stop:
-        run = run_training(args, stop)
-    if run.status == "interrupted":
+    out = Path(record["out"])
+    resuming = record["status"] != "new"
+    if not resuming:
+        out.mkdir(parents=True, exist_ok=True)
+    print(f"main job folder: {out}  ({', '.join(record['envs'])})", flush=True)
+    record.update(status="running", episodes=args.episodes, eval_seed=args.eval_seed)
+    record.setdefault("results", {})
+    _write_record(out, record)
+    n = len(record["envs"])
+    for k, env_id in enumerate(record["envs"], 1):
+        code = _one_env(args, record, env_id, f"[{k}/{n}]", overwrite=not resuming)
+        if code:
+            record["status"] = "interrupted"
+            _write_record(out, record)
+            return code
+        _write_record(out, record)
+    wall = time.perf_counter() - start
+    record.update(status="finished", wall_seconds=round(wall, 1))
+    _write_record(out, record)
+    for env_id in record["envs"]:
+        result = record["results"][env_id]
         print(
-            f"{PROG}: interrupted at {run.steps_done:,d} steps; resume with --resume {run.out}",
-            file=sys.stderr,
+            f"{env_id}: learning curve {out / run_name(env_id) / 'learning_curve.png'}, "
+            f"clip {out / run_name(env_id) / 'clip.gif'}"
         )
-        return cli.EXIT_INTERRUPTED
-    best = str(run.out / "best_model.zip")
+        tp = result.get("throughput") or {}
+        if tp:
+            print(
+                f"   trained {tp['env_steps']:,d} env steps in {tp['learn_seconds'] / 60:.1f} min "
+                f"({tp['steps_per_second']:,.0f} env steps/s, simulator "
+                f"{tp['sim_share']:.1%} of the training time, {result['backend']} physics)"
+            )
+    print(f"main job folder: {out}")
+    print(f"main job done in {wall / 60:.1f} min")
+    return 0
 
-    print(f"== 2/3 evaluating on {args.episodes} seeded episodes (seeds {args.eval_seed}…)")
+
+def _one_env(
+    args: argparse.Namespace, record: dict, env_id: str, tag: str, overwrite: bool
+) -> int | None:
+    """Train (or resume), evaluate and film ``env_id``; its table goes into ``record``.
+    Returns an exit status when interrupted, else None."""
+    out, settings = Path(record["out"]), record["settings"]
+    folder = out / run_name(env_id)
+    algo = _algo(settings, env_id)
+    if env_id in record["results"] and (folder / RECORD).is_file():
+        print(f"== {tag} {env_id}: done before (table in {folder / RECORD})", flush=True)
+        print_table(record["results"][env_id]["rows"], env_id)
+        return None
+    start = time.perf_counter()
+    status = _run_status(folder)
+    with StopOnSignal() as stop:
+        if status == "finished":
+            print(f"== {tag} {env_id}: training finished before ({folder})", flush=True)
+            throughput = run_folder.read(folder).get("throughput") or {}
+        elif status in run_folder.RESUMABLE and (folder / run_folder.CHECKPOINT).is_file():
+            print(f"== {tag} resuming the training of {algo.upper()} on {env_id}", flush=True)
+            run = resume(folder, progress=not args.no_progress, stop=stop)
+            if run.status == "interrupted":
+                return _interrupted(out, run.steps_done)
+            throughput = run.throughput
+        else:
+            print(f"== {tag} training {algo.upper()} on {env_id}", flush=True)
+            run = train(
+                env_id,
+                algo,
+                settings["timesteps"],
+                settings["seed"],
+                settings["n_envs"],
+                folder,
+                settings["overrides"],
+                args.eval_seed,
+                progress=not args.no_progress,
+                checkpoint_every=settings["checkpoint_every"],
+                overwrite=overwrite or status is not None,  # a run stopped before a checkpoint
+                stop=stop,
+            )
+            if run.status == "interrupted":
+                return _interrupted(out, run.steps_done)
+            throughput = run.throughput
+    train_seconds = time.perf_counter() - start
+    best = str(folder / "best_model.zip")
+
+    print(f"== {tag} evaluating on {args.episodes} seeded episodes (seeds {args.eval_seed}…)")
     rows = []
     for policy in ("random", "zero", "analytic", best):
         print(f"   {policy} …", flush=True)
@@ -76,27 +270,34 @@ def main(argv: Sequence[str] | None = None) -> int:
             row["policy"] = f"{algo.upper()} (best_model.zip)"
         rows.append(row)
     print_table(rows, f"{env_id}: {args.episodes} episodes from seed {args.eval_seed}")
-
-    print("== 3/3 writing a clip of the learned policy", flush=True)
-    clip = write_gif(env_id, best, run.out / "clip.gif", args.eval_seed)
-    wall = time.perf_counter() - start
+    print(f"== {tag} writing a clip of the learned policy", flush=True)
+    write_gif(env_id, best, folder / "clip.gif", args.eval_seed)
     summary = {
         **table_document(env_id, rows, args.episodes, args.eval_seed),
-        "throughput": run.throughput,
-        "wall_seconds": round(wall, 1),
+        "algo": algo,
+        "backend": _backend(env_id),
+        "throughput": throughput,
+        "train_seconds": round(train_seconds, 1),
+        "wall_seconds": round(time.perf_counter() - start, 1),
     }
-    write_json(run.out / "main_job.json", summary, indent=2)
-    tp = run.throughput
-    if tp:  # empty when a resumed run had nothing left to train
-        print(
-            f"training throughput {tp['steps_per_second']:,.0f} env steps/s "
-            f"(simulator {tp['sim_share']:.1%} of the training time)"
-        )
-    print(f"learning curve: {run.out / 'learning_curve.png'}")
-    print(f"clip:           {clip}")
-    print(f"run folder:     {run.out}")
-    print(f"main job done in {wall / 60:.1f} min")
-    return 0
+    write_json(folder / RECORD, summary, indent=2)
+    record["results"][env_id] = summary
+    return None
+
+
+def _backend(env_id: str) -> str:
+    """Which physics the figures were measured on: the scene's step implementation."""
+    from .rollout import make_vec
+
+    env: Any = make_vec(env_id, 1)  # a rigid_env vector env: it has a task with a scene
+    backend = getattr(env.unwrapped.task.scene, "backend", "numpy")
+    env.close()
+    return str(backend)
+
+
+def _interrupted(out: Path, steps: int) -> int:
+    print(f"{PROG}: interrupted at {steps:,d} steps; resume with --resume {out}", file=sys.stderr)
+    return cli.EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

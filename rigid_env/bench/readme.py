@@ -87,6 +87,29 @@ def speed_summary(doc: dict) -> str:
     )
 
 
+def main_job_summary(doc: dict) -> str:
+    """One line per env of a main job's record (``python -m agents``, ``OUT/main_job.json``):
+    the training it did, where, and what the learned policy reached."""
+    lines = [
+        "| env | algorithm | env steps | training | steps/s | physics | learned success "
+        "| analytic success |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for env_id in doc["envs"]:
+        result = doc["results"][env_id]
+        tp = result["throughput"]
+        rows = {row["policy"]: row for row in result["rows"]}
+        learned = next(row for name, row in rows.items() if name.endswith("(best_model.zip)"))
+        lines.append(
+            f"| {env_id} | {result['algo'].upper()} | {tp['env_steps']:,d} "
+            f"| {tp['learn_seconds'] / 60:.1f} min | {tp['steps_per_second']:,.0f} "
+            f"| {result['backend']} | {learned['success_rate']:.1%} "
+            f"| {rows['analytic']['success_rate']:.1%} |"
+        )
+    lines += ["", f"Whole job (training, evaluation, clips): {doc['wall_seconds'] / 60:.1f} min."]
+    return "\n".join(lines)
+
+
 # NAME -> (JSON file in docs/results, renderer)
 RENDERERS: dict[str, tuple[str, Callable[[dict], str]]] = {
     "accuracy": ("accuracy.json", accuracy_summary),
@@ -94,6 +117,10 @@ RENDERERS: dict[str, tuple[str, Callable[[dict], str]]] = {
     "speed": ("speed.json", speed_summary),
     "eval-reorient": ("eval-reorient.json", rows_table),
     "eval-box-landing": ("eval-box-landing.json", rows_table),
+    # Copies of a main job's records: OUT/main_job.json and OUT/<env>/main_job.json.
+    "main-job": ("main-job.json", main_job_summary),
+    "main-job-reorient": ("main-job-reorient.json", rows_table),
+    "main-job-box-landing": ("main-job-box-landing.json", rows_table),
 }
 
 

@@ -181,7 +181,11 @@ MAIN_JOB_CASES = [
     (["--episodes", "0"], "--episodes"),
     (["--eval-seed", "-1"], "--eval-seed"),
     (["--out", "done"], "already holds a run"),
-    (["--resume", "done"], "is finished"),
+    (["--out", "notes"], "holds no main_job.json"),
+    (["--env", "RigidEnv/NoSuch-v0"], "unknown env id"),
+    (["--set", "no_such_key=1"], "no_such_key"),
+    (["--resume", "done"], "holds no main_job.json"),  # a run of agents.train, not a main job
+    (["--resume", "done", "--seed", "3"], "drop ['--seed']"),
 ]
 
 
