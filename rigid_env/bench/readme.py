@@ -115,8 +115,6 @@ RENDERERS: dict[str, tuple[str, Callable[[dict], str]]] = {
     "accuracy": ("accuracy.json", accuracy_summary),
     "stability": ("stability.json", stability_summary),
     "speed": ("speed.json", speed_summary),
-    "eval-reorient": ("eval-reorient.json", rows_table),
-    "eval-box-landing": ("eval-box-landing.json", rows_table),
     # Copies of a main job's records: OUT/main_job.json and OUT/<env>/main_job.json.
     "main-job": ("main-job.json", main_job_summary),
     "main-job-reorient": ("main-job-reorient.json", rows_table),
