@@ -312,6 +312,56 @@ def test_any_step_up_to_one_second_never_gains_energy_or_tunnels(dt):
             assert corners[..., 2].min() >= -1e-12
 
 
+EDGE_HEIGHT = 0.9e-3  # m: the far edge above the ground (the bench's frozen boxes: 0.3–1 mm)
+
+
+def test_box_at_rest_on_an_edge_at_a_large_step_topples_flat_instead_of_freezing():
+    # A box at rest on an edge, its far edge EDGE_HEIGHT up, at Δt = 0.01 s. The far corners
+    # strike the ground at ~0.15 m/s (pivoting on the edge; above the 0.1 m/s threshold, so a
+    # bounce with ε = 0.3 follows), the next landing is below the threshold: the box must end
+    # flat on a face and at rest. (The edge freeze: the impacts' path sank through the edge,
+    # the separation's lift took the step's energy, and the energy guard zeroed the velocity
+    # every step: tilted, at rest, the solve capped every step.) Bounds: corners of the face
+    # at most 1e-12 m up (the rounding of the separation's lift, as at large steps below),
+    # velocities 1e-12 (rest is the exact solution of a step, as for the resting bodies),
+    # no solve capped and no impact once at rest (a face at rest needs one sweep), and each
+    # step ends with no more KE + PE than it started with (relative 1e-12: rounding).
+    dt = 0.01
+    box = sim.Body.box(HALF, 1.0)
+    scene = sim.Scene(box, dt, gravity=DOWN, ground=sim.Ground(0.3, 0.5))
+    faces = [np.zeros(3), np.array([np.pi / 2, 0, 0]), np.array([0, np.pi / 2, 0])]
+    orientation = []
+    for face in faces:
+        q = quat_exp(face)
+        extent = np.ptp(quat_rotate(q, box.shape.vertices), axis=0)  # the face's sides
+        for axis, side in ((0, 1), (1, 0)):  # tilted about world x (y side rises), about y
+            tilt = np.zeros(3)
+            tilt[axis] = np.arcsin(EDGE_HEIGHT / extent[side])
+            orientation.append(quat_multiply(quat_exp(tilt), q))
+    orientation = np.array(orientation)
+    low = -np.min(quat_rotate(orientation[:, None, :], box.shape.vertices)[..., 2], axis=-1)
+    position = np.zeros((len(orientation), 1, 3))
+    position[:, 0, 2] = low
+    state = scene.initial_state(position=position, orientation=orientation[:, None, :])
+    e = scene.energy(state)
+    steps, settled = 100, 50  # 1 s; the toppling takes a few steps
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sim.ContactSolverWarning)
+        for k in range(steps):
+            state = scene.step(state)
+            e_new = scene.energy(state)
+            assert np.all(e_new <= e + 1e-12 * np.maximum(np.abs(e), np.abs(e_new)))
+            e = e_new
+            report = scene.report["contacts"]
+            if k >= settled:
+                assert (report.capped, report.impacts) == (0, 0), k
+    corners = state.position + quat_rotate(state.orientation, box.shape.vertices)
+    face = np.sort(corners[..., 2], axis=-1)[:, :4]
+    assert np.all(np.abs(face) <= 1e-12), face
+    np.testing.assert_allclose(state.linear_velocity, 0.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(state.angular_velocity, 0.0, rtol=0, atol=1e-12)
+
+
 # --- settings and report -------------------------------------------------------------------------
 
 

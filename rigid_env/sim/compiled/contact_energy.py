@@ -33,11 +33,11 @@ from .rotation import quat_exp, quat_multiply, quat_normalize, quat_rotate, quat
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kinetic(bd, st, e, u):
-    """``energy.kinetic`` at the start orientations (x₀'s q₀) of velocities u (n, 6)."""
+def kinetic(bd, q, u):
+    """``energy.kinetic`` at orientations q (n, 4) of velocities u (n, 6)."""
     total = 0.0
     for b in range(u.shape[0]):
-        rot = quat_to_matrix((st[Q0][e, b, 0], st[Q0][e, b, 1], st[Q0][e, b, 2], st[Q0][e, b, 3]))
+        rot = quat_to_matrix((q[b, 0], q[b, 1], q[b, 2], q[b, 3]))
         w = (u[b, 3], u[b, 4], u[b, 5])
         spin = apply_inertia(bd, b, rot, w)
         lin = 0.5 * bd[b, 0] * (u[b, 0] ** 2 + u[b, 1] ** 2 + u[b, 2] ** 2)
@@ -111,13 +111,18 @@ def limit_energy(e, st, d):
             u1[shaped[g], j] = cs[g * k, U1 + j]
     elapsed = report[e, ELAPSED]
     tail = dt - elapsed
+    q0 = st[Q0][e]
     pe0 = potential(mass, gravity, has_gravity, x0)
-    e_start = kinetic(bd, st, e, u0) + pe0
+    e_start = kinetic(bd, q0, u0) + pe0
     for b in range(n):
         for j in range(3):
             scratch[b, j] = x0[b, j] + dt * u1[b, j]
-    e_free = kinetic(bd, st, e, u1) + potential(mass, gravity, has_gravity, scratch)
-    ke = kinetic(bd, st, e, u)
+    e_free = kinetic(bd, q0, u1) + potential(mass, gravity, has_gravity, scratch)
+    # The orientation follows the path (``LimitEnergy``): q_path is the restitution's ``Q``
+    # when an event moved the element, else q₀; KE at exp(h ω) q_path equals KE at q_path.
+    moved = elapsed > 0
+    q_path = st[Q][e] if moved else q0
+    ke = kinetic(bd, q_path, u)
     # x_end = base + f (Δt − elapsed) v, base = x₀ + translation (the path's).
     for b in range(n):
         for j in range(3):
@@ -143,11 +148,11 @@ def limit_energy(e, st, d):
         for b in range(n):
             for j in range(3):
                 scratch[b, j] = base[b, j] + (f * tail) * u[b, j]
-            h = f * dt
+            h = f * tail
             qe = quat_normalize(
                 quat_multiply(
                     quat_exp((h * u[b, 3], h * u[b, 4], h * u[b, 5])),
-                    (st[Q0][e, b, 0], st[Q0][e, b, 1], st[Q0][e, b, 2], st[Q0][e, b, 3]),
+                    (q_path[b, 0], q_path[b, 1], q_path[b, 2], q_path[b, 3]),
                 )
             )
             for j in range(4):
@@ -166,6 +171,13 @@ def limit_energy(e, st, d):
                 st[V][e, b, j] = u[b, j] * f
                 st[W][e, b, j] = u[b, 3 + j] * f
                 u[b, j] = u[b, j] * f
+    if moved:  # the position update turns q by Δt ω: start it at exp(−elapsed ω) q_path
+        for b in range(n):
+            h = -elapsed
+            back = quat_exp((h * u[b, 3], h * u[b, 4], h * u[b, 5]))
+            qb = quat_multiply(back, (q_path[b, 0], q_path[b, 1], q_path[b, 2], q_path[b, 3]))
+            for j in range(4):
+                q_path[b, j] = qb[j]
     # The position update adds translation − elapsed v to x₀ + Δt v (``Path.displacement``).
     for b in range(n):
         for j in range(3):
@@ -193,7 +205,8 @@ def separate_contacts(e, st, d):
             for j in range(3):
                 u[b, j] = st[V][e, b, j]
                 u[b, 3 + j] = st[W][e, b, j]
-        ke = kinetic(bd, st, e, u)
+        # KE at the end orientation: that of q₀ or of the path (``LimitEnergy``'s ``rot0``).
+        ke = kinetic(bd, st[Q][e] if report[e, ELAPSED] > 0 else st[Q0][e], u)
         # energy.pay
         keep = max(ke - lift, 0.0)
         factor = math.sqrt(keep / (ke if ke > 0 else 1.0))

@@ -41,8 +41,10 @@ from .layout import (
     REPORT,
     V0,
     W0,
+    Q,
 )
 from .registry import Kernel, register
+from .rotation import quat_exp, quat_multiply
 
 
 @njit(cache=True, error_model="numpy")
@@ -65,6 +67,7 @@ def restitute(e, st, d):
     max_impacts = ints[I_MAX_IMPACTS]
     cs = st[CONTACT][e]
     disp = st[DISPLACEMENT]
+    q = st[Q]
     n = st[0].shape[1]
     # One scratch allocation of floats and one of flags, carved into views.
     buf = np.empty(30 * n + 6 * c + c * c + WORK_PER_CONTACT * c)
@@ -97,7 +100,8 @@ def restitute(e, st, d):
         half[i] = 0.5 * (vn1 - vn0)
     elapsed = 0.0
     events = 0
-    for _ in range(max_impacts + 1):
+    held = False  # the supports' pass (restitution's docstring) ran
+    for _ in range(max_impacts + 2):
         first = math.inf
         for i in range(c):
             vn[i] = contact_velocity(cs, i, owner[i], u, 0)
@@ -114,6 +118,38 @@ def restitute(e, st, d):
             first = min(first, tau[i])
         if not first < dt - elapsed:
             break
+        if not held:
+            # The supports: the contacts that are no impact hold from the step's start.
+            for i in range(c):
+                g = cs[i, PATH_GAP]
+                goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
+            delassus(cs, owner, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
+            held = True
+            if not _event(
+                st,
+                e,
+                cs,
+                owner,
+                lflat,
+                rim,
+                mass,
+                linv,
+                mu,
+                a_nn,
+                vn,
+                goal,
+                lam,
+                none,
+                u,
+                z,
+                dz,
+                du,
+                max_iterations,
+                tolerance,
+                work,
+            ):
+                report[e, CAPPED] = 1.0
+            continue
         if events >= max_impacts:
             report[e, CAPPED] = 1.0
             break
@@ -123,6 +159,11 @@ def restitute(e, st, d):
         for b in range(n):
             for j in range(3):
                 disp[e, b, j] += first * u[b, j]
+            # The orientation follows the path too (``Path.orientation``): into ``Q``.
+            turn = quat_exp((first * u[b, 3], first * u[b, 4], first * u[b, 5]))
+            qb = quat_multiply(turn, (q[e, b, 0], q[e, b, 1], q[e, b, 2], q[e, b, 3]))
+            for j in range(4):
+                q[e, b, j] = qb[j]
         # Contacts closing together, and the other contacts of their bodies closing within
         # one step of the event, are struck together.
         for i in range(c):
@@ -139,32 +180,88 @@ def restitute(e, st, d):
             if not hit[i]:
                 goal[i] = -math.inf
             lam[i] = 0.0
-        if events == 0:
-            delassus(cs, owner, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
-        gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work)
-        du[:] = 0.0
-        add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
-        scaled_velocity(st, e, mass, linv, u, z)
-        scaled_velocity(st, e, mass, linv, du, dz)
-        # The largest α ∈ [0, 1] with |z + α dz| ≤ |z|: the event adds no kinetic energy.
-        quad = 0.0
-        lin = 0.0
-        for b in range(n):
-            for j in range(6):
-                quad += dz[b, j] * dz[b, j]
-                lin += z[b, j] * dz[b, j]
-        alpha = -2.0 * lin / quad if quad > 0 else 1.0
-        alpha = min(max(alpha, 0.0), 1.0)
-        for b in range(n):
-            for j in range(6):
-                u[b, j] = u[b, j] + alpha * du[b, j]
-        for i in range(c):
-            cs[i, IMPULSE] += alpha * lam[i]
+        if not _event(
+            st,
+            e,
+            cs,
+            owner,
+            lflat,
+            rim,
+            mass,
+            linv,
+            mu,
+            a_nn,
+            vn,
+            goal,
+            lam,
+            none,
+            u,
+            z,
+            dz,
+            du,
+            max_iterations,
+            tolerance,
+            work,
+        ):
+            report[e, CAPPED] = 1.0
         events += 1
     report[e, IMPACTS] = events
     report[e, ELAPSED] = elapsed
-    if events:
+    if held:
         store_velocities(st, e, u)
+
+
+@njit(cache=True, error_model="numpy")
+def _event(
+    st,
+    e,
+    cs,
+    owner,
+    lflat,
+    rim,
+    mass,
+    linv,
+    mu,
+    a_nn,
+    vn,
+    goal,
+    lam,
+    none,
+    u,
+    z,
+    dz,
+    du,
+    max_iterations,
+    tolerance,
+    work,
+):
+    """``restitution._event``: Newton's law ``v_n ≥ goal`` (−∞: out of play) by Gauss–Seidel
+    from zero, the impulses scaled by the largest α ∈ [0, 1] that adds no kinetic energy, added
+    to u and to the contacts' ``IMPULSE``. Returns whether the solve converged."""
+    n = u.shape[0]
+    c = lam.shape[0]
+    for i in range(c):
+        lam[i] = 0.0
+    _, converged = gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work)
+    du[:] = 0.0
+    add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
+    scaled_velocity(st, e, mass, linv, u, z)
+    scaled_velocity(st, e, mass, linv, du, dz)
+    # The largest α ∈ [0, 1] with |z + α dz| ≤ |z|: the event adds no kinetic energy.
+    quad = 0.0
+    lin = 0.0
+    for b in range(n):
+        for j in range(6):
+            quad += dz[b, j] * dz[b, j]
+            lin += z[b, j] * dz[b, j]
+    alpha = -2.0 * lin / quad if quad > 0 else 1.0
+    alpha = min(max(alpha, 0.0), 1.0)
+    for b in range(n):
+        for j in range(6):
+            u[b, j] = u[b, j] + alpha * du[b, j]
+    for i in range(c):
+        cs[i, IMPULSE] += alpha * lam[i]
+    return converged
 
 
 @register("restitute")

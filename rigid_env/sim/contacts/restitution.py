@@ -10,15 +10,26 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    closing at that instant, and those of the same manifold (body on the ground, body pair)
    closing within one step of it (a box landing flat or nearly so: four corners), are struck
    together, each with its own closing time (at most the step's end).
+   Before the first event, the element's other contacts (no impact: ε = 0, or closing below
+   the threshold) hold from the step's start: one inelastic normal solve, ``v_n ≥ −d/Δt``
+   (``v_n ≥ 0`` touching), with the impact contacts out of play, and the bodies travel to the
+   first event with its velocities. A body resting on an edge whose far corners fall onto the
+   ground within the step pivots on the edge until they strike, instead of falling through it
+   (a box a fraction of a millimetre from flat at Δt = 0.01 s: without the supports its path
+   sank through the edge, the separation's lift took all the energy the step had, and the
+   energy guard left it frozen tilted, at rest, step after step). Its impulses count as the
+   contacts' impulse (the friction budget of the inelastic solve).
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
    only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
    so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
    moves, reaches the third, …) and the loop goes on until no impact falls within the step
    (or ``max_impacts``, reported).
 
-Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ up to the last
-event, then the rest of the step with the final velocity (``Path``; the position update adds
-the difference to x₀ + Δt v as its displacement). A ball a Newton's cradle sets moving
+Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ and
+q = Π exp(τₖ ωₖ) q₀ up to the last event, then the rest of the step with the final velocity
+(``Path``; the position update adds the difference to x₀ + Δt v as its displacement, and
+``limit_energy`` starts its rotation at exp(−elapsed ω) q so that it ends at
+exp((Δt − elapsed) ω) q). A ball a Newton's cradle sets moving
 mid-step travels only the rest of the step, and the inelastic solve keeps the gaps where the
 impacts left them, over the remaining time. Impulses act where the bodies are at the event
 (``Rows.moved``): a pair's impulses at the features' midpoint there, so angular momentum is
@@ -43,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..rotation import quat_exp, quat_multiply
 from .assembly import scaled_velocity
 from .solve import gauss_seidel
 
@@ -59,11 +71,12 @@ def impact_targets(vn, s, t, eps, dt):
     return speed, eps * speed + rate * (0.5 * dt - t)
 
 
-def resolve_impacts(layout, rows, u0, u1, dt, settings):
+def resolve_impacts(layout, rows, u0, u1, dt, settings, q):
     """Impacts of the step in time order. Returns ``(u, impulse, events, capped, path)``: the
-    velocities after them (N, n, 6), the normal impulse each contact received (N, C), the
-    number of events (N,), whether an element still had impacts at ``max_impacts``, and the
-    :class:`Path` the bodies took."""
+    velocities after them (N, n, 6), the normal impulse each contact received (N, C) (the
+    supports' and the impacts'), the number of events (N,), whether an element still had
+    impacts at ``max_impacts`` or a solve of its events stopped at ``max_iterations``, and the
+    :class:`Path` the bodies took from the start orientations ``q`` (N, n, 4)."""
     size, c = rows.gap.shape
     impulse = np.zeros((size, c))
     events = np.zeros(size, int)
@@ -71,15 +84,17 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
     path = np.zeros(u1.shape[:-1] + (3,))
     elapsed = np.zeros(size)
     gap = np.array(rows.gap)
+    orientation = np.array(q)
     if not np.any(layout.eps > 0):
-        return u1, impulse, events, capped, Path(path, elapsed, gap)
+        return u1, impulse, events, capped, Path(path, elapsed, gap, orientation)
     vn0 = rows.velocity(u0, layout)[..., 0]
     vn1 = rows.velocity(u1, layout)[..., 0]
     s = 0.5 * (vn1 - vn0)
     u = np.array(u1)
     struck = np.zeros((size, c), bool)
     idx = np.arange(size)
-    for _ in range(settings.max_impacts + 1):
+    supports = True  # the first pass holds the supports (module docstring), then events
+    for _ in range(settings.max_impacts + 2):
         sub = rows.take(idx) if len(idx) < size else rows
         vn = sub.velocity(u[idx], layout)[..., 0]
         g = gap[idx]
@@ -92,6 +107,16 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         going = first < dt - elapsed[idx]
         if not going.any():
             break
+        if supports:
+            supports = False
+            keep = np.flatnonzero(going)
+            idx, vn, g, eligible = idx[keep], vn[keep], g[keep], eligible[keep]
+            hold = np.where(eligible, _OUT, np.where(g > 0, -g / dt, 0.0))
+            du, lam_n, alpha, done = _event(layout, rows.take(idx), u[idx], vn, hold, settings)
+            u[idx] += alpha[:, None, None] * du
+            impulse[idx] += alpha[:, None] * lam_n
+            capped[idx] |= ~done
+            continue
         if events[idx].max(initial=0) >= settings.max_impacts:
             capped[idx[going]] = True
             break
@@ -102,9 +127,10 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         gap[idx] = g
         elapsed[idx] += first
         path[idx] += first[:, None, None] * u[idx][..., :3]
+        turn = quat_exp(first[:, None, None] * u[idx][..., 3:])
+        orientation[idx] = quat_multiply(turn, orientation[idx])
         # The impulses act where the bodies are now (pairs: the features' midpoint there).
         sub = rows.take(idx).moved(layout, u[idx], path[idx])
-        a_sub = sub.normal_delassus
         # Contacts closing together (within a relative 1e-9 of the event's time), and the other
         # contacts of their manifolds that close within one step of it: the step cannot order
         # one body's corners on one surface closer than Δt, so they are struck together (a box
@@ -114,42 +140,54 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings):
         struck_manifold = (hit.astype(float) @ same) > 0
         hit |= eligible & struck_manifold & (tau < (first + dt)[:, None])
         struck[idx] |= hit
-        lam_n, _, _ = gauss_seidel(
-            a_sub,
-            vn[..., None],
-            np.where(hit, target, _OUT),
-            layout.mu,
-            np.zeros((len(idx), c, 1)),
-            settings,
-        )
-        lam = np.zeros((len(idx), c, 3))
-        lam[..., 0] = lam_n[..., 0]
-        du = sub.velocity_change(lam, layout)
-        ui = u[idx]
-        z = scaled_velocity(layout, ui, sub.scale)[..., 0]
-        dz = scaled_velocity(layout, du, sub.scale)[..., 0]
-        alpha = _energy_step(z, dz)
-        u[idx] = ui + alpha[:, None, None] * du
-        impulse[idx] += alpha[:, None] * lam_n[..., 0]
+        goal = np.where(hit, target, _OUT)
+        du, lam_n, alpha, done = _event(layout, sub, u[idx], vn, goal, settings)
+        u[idx] += alpha[:, None, None] * du
+        impulse[idx] += alpha[:, None] * lam_n
+        capped[idx] |= ~done
         events[idx] += 1
-    return u, impulse, events, capped, Path(path, elapsed, gap)
+    return u, impulse, events, capped, Path(path, elapsed, gap, orientation)
 
 
 @dataclass
 class Path:
-    """Where the impacts left the bodies: ``translation`` (N, n, 3) travelled up to the last
-    event, at time ``elapsed`` (N,) into the step, with the contacts' gaps ``gap`` (N, C)
-    there. The step then ends with x = x₀ + translation + (Δt − elapsed) v: a ball that a
+    """Where the impacts left the bodies: ``translation`` (N, n, 3) travelled and
+    ``orientation`` (N, n, 4) reached up to the last event, at time ``elapsed`` (N,) into the
+    step, with the contacts' gaps ``gap`` (N, C) there. The step then ends with
+    x = x₀ + translation + (Δt − elapsed) v, q = exp((Δt − elapsed) ω) orientation: a ball that a
     Newton's cradle sets moving mid-step travels only the rest of the step, and the inelastic
     solve keeps the gaps from ``gap`` over the remaining time."""
 
     translation: np.ndarray
     elapsed: np.ndarray
     gap: np.ndarray
+    orientation: np.ndarray
 
     def displacement(self, u):
         """The position update's correction to x₀ + Δt v: translation − elapsed v, (N, n, 3)."""
         return self.translation - self.elapsed[:, None, None] * u[..., :3]
+
+
+def _event(layout, rows, u, vn, goal, settings):
+    """One event's normal impulses: Newton's law ``v_n ≥ goal`` (−∞: out of play) solved by
+    ``gauss_seidel`` from zero. Returns ``(du, lam_n, alpha, converged)``: the velocity change
+    of the impulses (N, n, 6), the impulses (N, C), the largest α ∈ [0, 1] with which they add
+    no kinetic energy (``_energy_step``), and whether the solve converged (N,)."""
+    size, c = vn.shape
+    lam_n, _, done = gauss_seidel(
+        rows.normal_delassus,
+        vn[..., None],
+        goal,
+        layout.mu,
+        np.zeros((size, c, 1)),
+        settings,
+    )
+    lam = np.zeros((size, c, 3))
+    lam[..., 0] = lam_n[..., 0]
+    du = rows.velocity_change(lam, layout)
+    z = scaled_velocity(layout, u, rows.scale)[..., 0]
+    dz = scaled_velocity(layout, du, rows.scale)[..., 0]
+    return du, lam_n[..., 0], _energy_step(z, dz), done
 
 
 def _energy_step(z, dz):

@@ -10,7 +10,9 @@ Between a semi-implicit integrator's ``integrate_velocity`` and ``integrate_posi
 * ``solve_contacts`` solves the inelastic problem with friction to the stated tolerance
   (``solve``) and writes ``ctx.report["contacts"]`` (a :class:`ContactReport`);
 * ``limit_energy`` scales the velocities down if the step would end with more energy than it
-  started with (``energy``);
+  started with (``energy``), and hands the impacts' path to the position update (its
+  translation as ``ctx.displacement``, its orientation as the ``ctx.q`` the rotation starts
+  from);
 
 and after ``integrate_position``:
 
@@ -156,12 +158,13 @@ class Restitute:
             return
         u0 = _velocities(ctx, ctx.start)[idx]
         u1 = _velocities(ctx)[idx]
+        q = _flat(ctx)[1][idx]
         u, impulse, events, capped, path = resolve_impacts(
-            self.layout, hits["rows"], u0, u1, ctx.dt, self.settings
+            self.layout, hits["rows"], u0, u1, ctx.dt, self.settings, q
         )
         hits["impulse"], hits["events"], hits["impact_capped"] = impulse, events, capped
         hits["path"] = path
-        if np.any(events):
+        if np.any(impulse):  # supports held or impacts struck
             _write(ctx, idx, u)
 
 
@@ -248,9 +251,18 @@ class LimitEnergy:
         pe0 = energy.potential(model, x0)
         e_start = energy.kinetic(model, rot0, u0) + pe0
         e_free = energy.energy(model, x0 + dt * u1[..., :3], rot0, u1)
-        # KE at the end orientation exp(Δt ω) q₀ equals KE at q₀ (ω is that rotation's axis).
-        ke = energy.kinetic(model, rot0, u)
         path = hits.get("path")
+        # The orientation follows the path: turned by each interval's ω up to the last event
+        # (q_path), then by the final ω over the rest of the step, so the end orientation is
+        # exp((Δt − elapsed) ω) q_path; without events q_path = q₀.
+        q0 = start.orientation.reshape(-1, n, 4)[idx]
+        moved = np.zeros(len(idx), bool) if path is None else path.elapsed > 0
+        rot_path = rot0
+        if moved.any():
+            q0 = np.where(moved[:, None, None], path.orientation, q0)
+            rot_path = np.where(moved[:, None, None, None], quat_to_matrix(q0), rot0)
+        # KE at the end orientation exp(h ω) q_path equals KE at q_path (ω is its axis).
+        ke = energy.kinetic(model, rot_path, u)
         shift = np.zeros(x0.shape) if path is None else path.displacement(u)
         # With a path, x_end = x₀ + translation + (Δt − elapsed) f v: PE is still linear in f.
         base = x0 + shift + (0.0 if path is None else path.elapsed[:, None, None]) * u[..., :3]
@@ -261,11 +273,10 @@ class LimitEnergy:
         f = energy.scale_to(ke, lin, room)
         # The end configuration's overlap (rotation over the step) lifts the body too: halve
         # f until the separated end positions fit as well (f = 0 stays at the start).
-        q0 = start.orientation.reshape(-1, n, 4)[idx]
         for _ in range(MAX_HALVINGS):
             x_end = base + (f * tail)[:, None, None] * u[..., :3]
             q_end = quat_normalize(
-                quat_multiply(quat_exp((f * dt)[:, None, None] * u[..., 3:]), q0)
+                quat_multiply(quat_exp((f * tail)[:, None, None] * u[..., 3:]), q0)
             )
             pe_end = energy.potential(model, separated(self.layout, x_end, q_end))
             over = f * f * ke + pe_end - pe0 - pe_base > room + 1e-12 * np.abs(e_start) + 1e-300
@@ -274,10 +285,16 @@ class LimitEnergy:
             f = np.where(over, 0.5 * f, f)
         else:
             f = np.where(over, 0.0, f)
-        hits["rot0"] = rot0
+        hits["rot0"] = rot_path  # the end orientation's KE, for ``SeparateContacts``
         if np.any(f < 1):
             u = u * f[:, None, None]
             _write(ctx, idx, u)
+        if moved.any():
+            # The position update turns q by Δt ω: start it at exp(−elapsed ω) q_path.
+            q = np.array(ctx.q).reshape(-1, n, 4)
+            back = quat_exp(-path.elapsed[:, None, None] * u[..., 3:])
+            q[idx[moved]] = quat_multiply(back, path.orientation)[moved]
+            ctx.q = q.reshape(ctx.q.shape)
         if path is not None and np.any(path.elapsed > 0):
             # x_end = x₀ + Δt v + displacement, the path's translation − elapsed v.
             shift = path.displacement(u)
