@@ -3,11 +3,15 @@
 For each scene and each ``SolverSettings.start`` it prints the Gauss–Seidel sweeps per step
 (mean and max over the steps with a contact), the steps that stopped at the cap, and the
 scene's figure of merit (creep speed on the incline, drift of a resting body, yaw picked up by
-a box sliding diagonally). Run: ``python -m rigid_env.bench.contact_solve``.
+a box sliding diagonally). Run: ``python -m rigid_env.bench.contact_solve`` (``--help``: the
+step, the number of steps, the landing batch, the starts and a scene filter; e.g. the landing
+scene at the speed bench's Δt = 0.01 s: ``--dt 0.01 --steps 100 --landing-batch 64 --only
+landing``).
 """
 
 from __future__ import annotations
 
+import argparse
 import warnings
 
 import numpy as np
@@ -34,13 +38,15 @@ def tetrahedron() -> sim.Body:
     return sim.Body.polyhedron(verts, [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)], 1000.0)
 
 
-def cases(settings: sim.SolverSettings) -> dict[str, tuple[sim.Scene, sim.State]]:
+def cases(
+    settings: sim.SolverSettings, dt: float = DT, landing_batch: int = 8
+) -> dict[str, tuple[sim.Scene, sim.State]]:
     box = sim.Body.box((0.1, 0.15, 0.2), 1.0)
     down = (0.0, 0.0, -G)
 
     def resting(body: sim.Body) -> tuple[sim.Scene, sim.State]:
         scene = sim.Scene(
-            body, DT, gravity=down, ground=sim.Ground(0.3, 0.5), contact_solver=settings
+            body, dt, gravity=down, ground=sim.Ground(0.3, 0.5), contact_solver=settings
         )
         low = -np.min(body.shape.vertices[:, 2])
         return scene, scene.initial_state(position=(0, 0, low))
@@ -48,17 +54,17 @@ def cases(settings: sim.SolverSettings) -> dict[str, tuple[sim.Scene, sim.State]
     tilt = 0.3  # tan 0.3 = 0.31 < μ = 0.5: static friction must hold
     incline = sim.Scene(
         box,
-        DT,
+        dt,
         gravity=(G * np.sin(tilt), 0.0, -G * np.cos(tilt)),
         ground=sim.Ground(0.0, 0.5),
         contact_solver=settings,
     )
-    slide = sim.Scene(box, DT, gravity=down, ground=sim.Ground(0.0, 0.5), contact_solver=settings)
+    slide = sim.Scene(box, dt, gravity=down, ground=sim.Ground(0.0, 0.5), contact_solver=settings)
     yaw = quat_exp(np.array([0.0, 0.0, 0.4]))
     land, init = landing_scene()
     land = sim.Scene(
         land.model.bodies,
-        DT,
+        dt,
         gravity=down,
         ground=land.model.ground,
         contact_solver=settings,
@@ -74,16 +80,23 @@ def cases(settings: sim.SolverSettings) -> dict[str, tuple[sim.Scene, sim.State]
                 position=(0, 0, 0.2), orientation=yaw, linear_velocity=(1.5, 1.5, 0.0)
             ),
         ),
-        "landing scene, 8 tumbling boxes": (land, init((8,), np.random.default_rng(0))),
+        f"landing scene, {landing_batch} tumbling boxes": (
+            land,
+            init((landing_batch,), np.random.default_rng(0)),
+        ),
     }
 
 
-def measure(start: str, steps: int = 480) -> list[dict]:
+def measure(
+    start: str, steps: int = 480, dt: float = DT, landing_batch: int = 8, only: str = ""
+) -> list[dict]:
     settings = sim.SolverSettings(start=start)
     out = []
-    for name, (scene, state) in cases(settings).items():
+    for name, (scene, state) in cases(settings, dt, landing_batch).items():
+        if only not in name:
+            continue
         first = state
-        sweeps, capped = [], 0
+        sweeps, capped, elements, engaged = [], 0, 0, 0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", sim.ContactSolverWarning)
             for _ in range(steps):
@@ -92,6 +105,8 @@ def measure(start: str, steps: int = 480) -> list[dict]:
                 if report.engaged:
                     sweeps.append(report.iterations)
                 capped += report.capped > 0
+                elements += report.capped
+                engaged += report.engaged
         drift = float(np.max(np.abs(state.position - first.position)))
         turn = float(np.max(quat_angle(state.orientation, first.orientation)))
         speed = float(np.max(np.linalg.norm(state.linear_velocity, axis=-1)))
@@ -99,8 +114,11 @@ def measure(start: str, steps: int = 480) -> list[dict]:
             {
                 "scene": name,
                 "mean_sweeps": float(np.mean(sweeps)) if sweeps else 0.0,
+                "median_sweeps": float(np.median(sweeps)) if sweeps else 0.0,
                 "max_sweeps": int(np.max(sweeps)) if sweeps else 0,
                 "capped_steps": capped,
+                # Of the element-steps with a contact, the share whose solve stopped at a cap.
+                "capped_fraction": elements / engaged if engaged else 0.0,
                 "final_speed": speed,
                 "drift_m": drift,
                 "turn_rad": turn,
@@ -109,17 +127,35 @@ def measure(start: str, steps: int = 480) -> list[dict]:
     return out
 
 
-def main() -> None:
-    print(
-        f"{'start':10s} {'scene':34s} {'sweeps':>7s} {'max':>5s} {'capped':>6s} "
-        f"{'|v| end':>9s} {'drift m':>9s} {'turn rad':>9s}"
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dt", type=float, default=DT, help="time step (s), default 1/240")
+    parser.add_argument("--steps", type=int, default=480, help="steps per scene, default 480")
+    parser.add_argument(
+        "--landing-batch", type=int, default=8, help="boxes of the landing scene, default 8"
     )
-    for start in ("particle", "active_set"):
-        for r in measure(start):
+    parser.add_argument(
+        "--starts",
+        nargs="+",
+        default=["particle", "active_set"],
+        choices=["particle", "active_set"],
+        help="SolverSettings.start values to measure, default both",
+    )
+    parser.add_argument("--only", default="", help="measure the scenes whose name contains this")
+    args = parser.parse_args(argv)
+    # Sweeps: the most any element of the batch needed in a step (``ContactReport.iterations``),
+    # over the steps with a contact; capped: steps with a capped element, and the share of
+    # element-steps with a contact whose solve was capped.
+    print(
+        f"{'start':10s} {'scene':34s} {'sweeps':>7s} {'median':>6s} {'max':>5s} {'capped':>6s} "
+        f"{'cap frac':>8s} {'|v| end':>9s} {'drift m':>9s} {'turn rad':>9s}"
+    )
+    for start in args.starts:
+        for r in measure(start, args.steps, args.dt, args.landing_batch, args.only):
             print(
-                f"{start:10s} {r['scene']:34s} {r['mean_sweeps']:7.1f} {r['max_sweeps']:5d} "
-                f"{r['capped_steps']:6d} {r['final_speed']:9.2e} {r['drift_m']:9.2e} "
-                f"{r['turn_rad']:9.2e}"
+                f"{start:10s} {r['scene']:34s} {r['mean_sweeps']:7.1f} {r['median_sweeps']:6.0f} "
+                f"{r['max_sweeps']:5d} {r['capped_steps']:6d} {r['capped_fraction']:8.4f} "
+                f"{r['final_speed']:9.2e} {r['drift_m']:9.2e} {r['turn_rad']:9.2e}"
             )
 
 

@@ -16,6 +16,7 @@ from .layout import (
     DISPLACEMENT,
     ELAPSED,
     ENGAGED,
+    PATH_Q,
     Q0,
     REPORT,
     U1,
@@ -89,7 +90,7 @@ def limit_energy(e, st, d):
     cs = st[CONTACT][e]
     disp = st[DISPLACEMENT]
     n = st[0].shape[1]
-    buf = np.empty(34 * n)  # one scratch allocation, carved into views
+    buf = np.empty(35 * n)  # one scratch allocation, carved into views
     u0 = buf[: 6 * n].reshape((n, 6))
     u1 = buf[6 * n : 12 * n].reshape((n, 6))
     u = buf[12 * n : 18 * n].reshape((n, 6))
@@ -118,10 +119,26 @@ def limit_energy(e, st, d):
         for j in range(3):
             scratch[b, j] = x0[b, j] + dt * u1[b, j]
     e_free = kinetic(bd, q0, u1) + potential(mass, gravity, has_gravity, scratch)
-    # The orientation follows the path (``LimitEnergy``): q_path is the restitution's ``Q``
-    # when an event moved the element, else q₀; KE at exp(h ω) q_path equals KE at q_path.
+    # The orientation follows the path (``LimitEnergy``): q_path is the restitution's
+    # ``PATH_Q`` when an event moved the element (a body without contacts kept its ω: turned
+    # by elapsed ω at once), else q₀; KE at exp(h ω) q_path equals KE at q_path.
     moved = elapsed > 0
-    q_path = st[Q][e] if moved else q0
+    q_path = buf[31 * n : 35 * n].reshape((n, 4))
+    for b in range(n):
+        for j in range(4):
+            q_path[b, j] = q0[b, j]
+    if moved:
+        for b in range(n):
+            h = elapsed
+            turn = quat_exp((h * u[b, 3], h * u[b, 4], h * u[b, 5]))
+            qb = quat_multiply(
+                turn, (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+            )
+            for j in range(4):
+                q_path[b, j] = qb[j]
+        for g in range(shaped.shape[0]):
+            for j in range(4):
+                q_path[shaped[g], j] = cs[g * k, PATH_Q + j]
     ke = kinetic(bd, q_path, u)
     # x_end = base + f (Δt − elapsed) v, base = x₀ + translation (the path's).
     for b in range(n):
@@ -171,13 +188,14 @@ def limit_energy(e, st, d):
                 st[V][e, b, j] = u[b, j] * f
                 st[W][e, b, j] = u[b, 3 + j] * f
                 u[b, j] = u[b, j] * f
+                u[b, 3 + j] = u[b, 3 + j] * f
     if moved:  # the position update turns q by Δt ω: start it at exp(−elapsed ω) q_path
         for b in range(n):
             h = -elapsed
             back = quat_exp((h * u[b, 3], h * u[b, 4], h * u[b, 5]))
             qb = quat_multiply(back, (q_path[b, 0], q_path[b, 1], q_path[b, 2], q_path[b, 3]))
             for j in range(4):
-                q_path[b, j] = qb[j]
+                st[Q][e, b, j] = qb[j]
     # The position update adds translation − elapsed v to x₀ + Δt v (``Path.displacement``).
     for b in range(n):
         for j in range(3):

@@ -17,6 +17,7 @@ from numba import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
+    I_K,
     I_MAX_IMPACTS,
     I_MAX_ITERATIONS,
     add_impulses,
@@ -38,6 +39,7 @@ from .layout import (
     IMPACTS,
     IMPULSE,
     PATH_GAP,
+    PATH_Q,
     REPORT,
     V0,
     W0,
@@ -98,6 +100,10 @@ def restitute(e, st, d):
         vn0 = contact_velocity(cs, i, owner[i], u0, 0)
         vn1 = contact_velocity(cs, i, owner[i], u, 0)
         half[i] = 0.5 * (vn1 - vn0)
+    k = ints[I_K]
+    for g in range(shaped.shape[0]):  # the path's orientation starts at the working q
+        for j in range(4):
+            cs[g * k, PATH_Q + j] = q[e, shaped[g], j]
     elapsed = 0.0
     events = 0
     held = False  # the supports' pass (restitution's docstring) ran
@@ -159,11 +165,15 @@ def restitute(e, st, d):
         for b in range(n):
             for j in range(3):
                 disp[e, b, j] += first * u[b, j]
-            # The orientation follows the path too (``Path.orientation``): into ``Q``.
+        # The orientation follows the path too (``Path.orientation``), in a shaped body's
+        # ``PATH_Q`` (a body without contacts keeps its ω: ``limit_energy`` turns it at once).
+        for g in range(shaped.shape[0]):
+            b = shaped[g]
             turn = quat_exp((first * u[b, 3], first * u[b, 4], first * u[b, 5]))
-            qb = quat_multiply(turn, (q[e, b, 0], q[e, b, 1], q[e, b, 2], q[e, b, 3]))
+            p = cs[g * k, PATH_Q : PATH_Q + 4]
+            qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
             for j in range(4):
-                q[e, b, j] = qb[j]
+                p[j] = qb[j]
         # Contacts closing together, and the other contacts of their bodies closing within
         # one step of the event, are struck together.
         for i in range(c):

@@ -23,7 +23,8 @@ T1 = 23  # 3: the first tangent t₁ (t₂ = n × t₁)
 PATH_GAP = 26  # the gap where the step's impacts left the contact (the detected gap without)
 IMPULSE = 27  # normal impulse of the step's impacts (the friction budget of the solve)
 U1 = 28  # 6, in a body's first slot: its (v, ω) after the velocity update (the energy guard)
-CONTACT_WIDTH = 34
+PATH_Q = 34  # 4, in a body's first slot: its orientation along the impacts' path (``Path``)
+CONTACT_WIDTH = 38
 
 # Columns of ``report`` (the contact solve's; see ``contacts.stages.ContactReport``).
 ENGAGED = 0  # 1.0 if the element had a contact within reach this step
