@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..contacts.warm_start import ROUNDS
+from ..contacts.warm_start import PUSH_TOLERANCE, ROUNDS
 
 
 @njit(cache=True, error_model="numpy")
@@ -37,6 +37,10 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
         goal[3 * i + 1] = -free[3 * i + 1]
         goal[3 * i + 2] = -free[3 * i + 2]
     on = reachable.copy()
+    push = 0.0  # PUSH_TOLERANCE × the largest |short| (``warm_start``)
+    for i in range(c):
+        push = max(push, abs(short[i]))
+    push *= PUSH_TOLERANCE
     bound = np.zeros(c, np.bool_)
     direction = np.zeros((c, 2))
     budget = extra > 0
@@ -111,7 +115,7 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             acc = 0.0
             for j in range(size):
                 acc += a[3 * i, j] * lam[j]
-            nxt[i] = (on[i] and lam[3 * i] > 0) or ((not on[i]) and short[i] - acc > 0)
+            nxt[i] = (on[i] and lam[3 * i] > 0) or ((not on[i]) and short[i] - acc > push)
             if nxt[i] != on[i] or over[i]:
                 settled = False
         if settled:

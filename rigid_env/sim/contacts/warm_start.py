@@ -19,6 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 ROUNDS = 6  # active-set rounds (a stack of two needs 2–3)
+# A contact left out joins the set when the impulses leave it short by more than this share of
+# the element's largest shortfall: a contact the others hold exactly at its target (a face's
+# fourth corner) is otherwise added or not by rounding, and the two backends then start from
+# different sets (the friction problem of a sliding face need not have a unique solution).
+PUSH_TOLERANCE = 1e-12
 
 
 def particle_start(layout, short, lam_n):
@@ -57,6 +62,7 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
     settled = np.zeros(size, bool)
     lam = np.zeros((size, c, 3))
     budget = extra > 0
+    scale = np.max(np.abs(short), axis=-1, keepdims=True)
     for _ in range(ROUNDS):
         rows3 = on[..., None] & row_used
         rows3[..., 1:] = (on | budget)[..., None] & row_used[:, 1:] & ~bound[..., None]
@@ -83,7 +89,7 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
         lam = np.concatenate((lam_n[..., None], lam_t * shrink[..., None]), -1)
         nxt = on & (lam_n > 0)
         pushed = (delassus @ lam.reshape(size, -1, 1)).reshape(size, c, 3)[..., 0]
-        nxt |= ~on & (short - pushed > 0)
+        nxt |= ~on & (short - pushed > PUSH_TOLERANCE * scale)
         settled = np.all(nxt == on, axis=-1) & ~np.any(over, axis=-1)
         if settled.all():
             break
@@ -102,4 +108,4 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
     return lam
 
 
-__all__ = ["ROUNDS", "active_set_start", "particle_start"]
+__all__ = ["PUSH_TOLERANCE", "ROUNDS", "active_set_start", "particle_start"]
