@@ -10,15 +10,12 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    closing at that instant, and those of the same manifold (body on the ground, body pair)
    closing within one step of it (a box landing flat or nearly so: four corners), are struck
    together, each with its own closing time (at most the step's end).
-   Before the first event, the element's other contacts (no impact: ε = 0, or closing below
-   the threshold) hold from the step's start: one inelastic normal solve, ``v_n ≥ −d/Δt``
-   (``v_n ≥ 0`` touching), with the impact contacts out of play, and the bodies travel to the
-   first event with its velocities. A body resting on an edge whose far corners fall onto the
-   ground within the step pivots on the edge until they strike, instead of falling through it
-   (a box a fraction of a millimetre from flat at Δt = 0.01 s: without the supports its path
-   sank through the edge, the separation's lift took all the energy the step had, and the
-   energy guard left it frozen tilted, at rest, step after step). Its impulses count as the
-   contacts' impulse (the friction budget of the inelastic solve).
+   Supports: before the first event, the element's other contacts (no impact: ε = 0, or
+   closing below the threshold) hold from the step's start, by one inelastic normal solve
+   (``v_n ≥ −d/Δt``, ``v_n ≥ 0`` touching; the impact contacts out of play); its impulses
+   count as the contacts' impulse (the friction budget of the inelastic solve). A box at rest
+   on an edge whose far corners strike within the step pivots on the edge until they do,
+   instead of sinking through it.
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
    only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
    so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
@@ -29,11 +26,18 @@ Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ 
 q = Π exp(τₖ ωₖ) q₀ up to the last event, then the rest of the step with the final velocity
 (``Path``; the position update adds the difference to x₀ + Δt v as its displacement, and
 ``limit_energy`` starts its rotation at exp(−elapsed ω) q so that it ends at
-exp((Δt − elapsed) ω) q). A ball a Newton's cradle sets moving
-mid-step travels only the rest of the step, and the inelastic solve keeps the gaps where the
-impacts left them, over the remaining time. Impulses act where the bodies are at the event
-(``Rows.moved``): a pair's impulses at the features' midpoint there, so angular momentum is
-exact.
+exp((Δt − elapsed) ω) q). A ball a Newton's cradle sets moving mid-step travels only the rest
+of the step, and the inelastic solve keeps the gaps where the impacts left them, over the
+remaining time. Impulses act where the bodies are at the event (``Rows.moved``): a pair's
+impulses at the features' midpoint there, so angular momentum is exact.
+
+The edge freeze (fixed by the supports and the path's orientation): a box at rest tilted on an
+edge a fraction of a millimetre from flat, at Δt = 0.01 s. Its far corners close within the
+step above the threshold and are struck; without the supports the path before the event was
+the free fall through the edge, and without the orientation the end pose lost the pivot's
+turn toward flat, so the separation lifted the body back to its start height, the energy
+guard (``limit_energy``) found no energy for any motion and zeroed the velocities: tilted and
+at rest, the same every step.
 
 Targets. Semi-implicit Euler under a constant non-contact acceleration a (gravity) stores
 step-mean velocities: the instantaneous normal velocity at a time t into the step is
