@@ -142,13 +142,13 @@ class HoldTask(BatchedTask):
 
     config: HoldTaskConfig
     state: sim.State
-    # What _measure sets (each a fresh array):
+    # What _measure(index) writes, rows index (buffers allocated once, in __init__; what leaves
+    # the task is a copy):
     _rot: np.ndarray  # (N, 3, 3) R(q)
-    _angle: np.ndarray  # (N,) the task's angle error
-    _spin: np.ndarray  # (N,) |Ω|
+    _meas: np.ndarray  # (N, M) float64: Ω (body axes, 3), angle error, |Ω|, then the task's
     _obs: np.ndarray  # (N, obs size) float32, in the order of observation_bounds
     _within_goal: np.ndarray  # (N,) bool
-    _next_terms: np.ndarray  # (N, len(reward_terms)), the task's own terms in its first columns
+    _task_terms: np.ndarray  # (N, len(task_reward_terms)), the task's own reward terms
 
     def __init__(self, num_envs: int, config: HoldTaskConfig | None = None, **kwargs: Any):
         self.num_envs = positive_int(num_envs, "num_envs")
@@ -198,6 +198,11 @@ class HoldTask(BatchedTask):
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
+        self._all = np.arange(n)  # _measure's index for every env
+        self._rot = np.empty((n, 3, 3))
+        self._obs = np.empty((n, size), np.float32)
+        self._within_goal = np.empty(n, dtype=bool)
+        self._task_terms = np.zeros((n, len(self.task_reward_terms)))
 
     @classmethod
     def structure(cls) -> dict[str, int]:
@@ -207,10 +212,16 @@ class HoldTask(BatchedTask):
     # --- what a task supplies -------------------------------------------------------------------
 
     @abstractmethod
-    def _measure(self) -> None:
-        """Read everything off ``self.state`` (and ``prev_action``), setting the fresh arrays
-        listed on the class: ``_rot``, ``_angle``, ``_spin``, ``_obs`` (each part clipped to
-        its bounds), ``_within_goal`` and ``_next_terms`` (its own reward terms)."""
+    def _measure(self, index: np.ndarray) -> None:
+        """Read everything off ``self.state`` (and ``prev_action``) for the envs ``index`` (an
+        intp array), writing their rows of the buffers listed on the class: ``_rot``,
+        ``_angle``, ``_spin``, ``_obs`` (each part clipped to its bounds), ``_within_goal`` and
+        ``_task_terms`` (its own reward terms). Other rows keep their values: they belong to
+        states that did not change."""
+
+    def _step_events(self) -> None:
+        """After a step's :meth:`_measure`: what the task counts per action period (events
+        that depend on the previous period as well as on the state); none by default."""
 
     @abstractmethod
     def _task_info(self) -> dict[str, np.ndarray]:
@@ -230,6 +241,22 @@ class HoldTask(BatchedTask):
         )
 
     # --- shared ---------------------------------------------------------------------------------
+
+    # Views of _meas taken on use (a view kept as an attribute would not survive pickling).
+    @property
+    def _omega(self) -> np.ndarray:
+        """(N, 3) body angular velocity Ω, rad/s."""
+        return self._meas[:, 0:3]
+
+    @property
+    def _angle(self) -> np.ndarray:
+        """(N,) the task's angle error, rad."""
+        return self._meas[:, 3]
+
+    @property
+    def _spin(self) -> np.ndarray:
+        """(N,) |Ω|, rad/s."""
+        return self._meas[:, 4]
 
     def _start_episode(self, index: np.ndarray) -> None:
         """Clear the per-episode memory of envs ``index`` (after a reset or a hand-built state)."""
@@ -255,23 +282,26 @@ class HoldTask(BatchedTask):
         return sim.State(**arrays)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Apply validated ``action`` (N, 3), which the task keeps as ``prev_action`` (the
+        caller passes its own copy); reward and terminated are fresh arrays."""
         self._advance(action * self.max_torque)  # body-frame torque, (N, 3)
         self.prev_action = action
-        self._measure()
-        n, cfg = self.num_envs, self.config
-        terms, reward, success = self._next_terms, np.empty(n), np.empty(n, dtype=bool)
+        self._measure(self._all)
+        self._step_events()
+        n = self.num_envs
+        reward, success = np.empty(n), np.empty(n, dtype=bool)
         kernels.hold_step(
             self._within_goal,
             self.hold,
             self._spin,
             action,
             self._hold_params,
-            terms,
+            self._task_terms,
+            self.terms,
             reward,
             success,
         )
-        self.terms = terms
-        terminated = success if cfg.terminate_on_success else np.zeros(n, bool)
+        terminated = success if self.config.terminate_on_success else np.zeros(n, bool)
         return reward, terminated
 
     def observation(self) -> np.ndarray:

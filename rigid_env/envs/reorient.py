@@ -224,7 +224,8 @@ class ReorientTask(HoldTask):
                 cfg.angle_weight / np.pi,
             ]
         )
-        self._measure()
+        self._meas = np.empty((n, 9))  # see kernels.reorient_measure
+        self._measure(self._all)
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
@@ -268,19 +269,15 @@ class ReorientTask(HoldTask):
             self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
         self.state = state
         self._start_episode(index)
-        self._measure()
+        self._measure(index)
 
     # --- measurements, observation, reward ------------------------------------------------------
 
-    def _measure(self) -> None:
+    def _measure(self, index: np.ndarray) -> None:
         """Error quaternion, body angular velocity, angle, spin, observation, goal and the angle
-        term of the current state: one compiled call (``kernels.reorient_measure``)."""
-        n = self.num_envs
-        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
-        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
-        self._within_goal = np.empty(n, dtype=bool)
-        self._next_terms = np.zeros((n, len(self.reward_terms)))
+        term of envs ``index``: one compiled call (``kernels.reorient_measure``)."""
         kernels.reorient_measure(
+            index,
             self.state.orientation,
             self.state.angular_velocity,
             self.target,
@@ -291,12 +288,7 @@ class ReorientTask(HoldTask):
             self._rot,
             self._meas,
             self._within_goal,
-            self._next_terms,
-        )
-        self._omega, self._angle, self._spin = (
-            self._meas[:, 0:3],
-            self._meas[:, 3],
-            self._meas[:, 4],
+            self._task_terms,
         )
 
     def _task_info(self) -> dict[str, np.ndarray]:
