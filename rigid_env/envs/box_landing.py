@@ -176,7 +176,7 @@ from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
+from .hold_task import OBS_LIMIT, STATE_FIELDS, HoldTask, HoldTaskConfig
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
 
@@ -371,14 +371,7 @@ class BoxLandingTask(HoldTask):
             face: Any = np.minimum((u[:, 8] * len(FACES)).astype(np.intp), len(FACES) - 1)
         else:
             face = cfg.target_face
-        self.set_state(
-            index,
-            position=position,
-            orientation=q,
-            linear_velocity=velocity,
-            angular_velocity=omega,
-            target_face=face,
-        )
+        self._set_state(index, (position, q, velocity, omega), face, trusted=True)
 
     def set_state(
         self,
@@ -395,13 +388,15 @@ class BoxLandingTask(HoldTask):
         hold timer, reward terms, touchdown count and previous action are cleared, and a box
         placed touching the ground does not count a touchdown."""
         index = np.asarray(index, dtype=np.intp)
-        state = self._edited_state(
-            index,
-            position=position,
-            orientation=orientation,
-            linear_velocity=linear_velocity,
-            angular_velocity=angular_velocity,
-        )
+        values = (position, orientation, linear_velocity, angular_velocity)
+        self._set_state(index, values, target_face, trusted=False)
+
+    def _set_state(
+        self, index: np.ndarray, values: tuple[Any, ...], target_face: Any, trusted: bool
+    ) -> None:
+        """:meth:`set_state` with ``values`` in ``STATE_FIELDS`` order; ``trusted``: they come
+        from :meth:`reset_envs` (no checks, see ``HoldTask._edited_state``)."""
+        state = self._edited_state(index, trusted, **dict(zip(STATE_FIELDS, values, strict=True)))
         if target_face is not None:
             face = _face_index(target_face)
             self.face[index] = np.broadcast_to(face, (len(index),))

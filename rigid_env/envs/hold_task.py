@@ -43,6 +43,13 @@ STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity"
 Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
 
 
+def unit_quaternions(q: Any) -> np.ndarray:
+    """``q / |q|`` along the last axis: the arithmetic of ``validation.quaternions`` without its
+    checks, for values a task computed itself."""
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class HoldTaskConfig:
     """Arguments every body-torque hold task takes, validated when the config is built.
@@ -264,14 +271,19 @@ class HoldTask(BatchedTask):
         self.hold[index] = 0
         self.terms[index] = 0.0
 
-    def _edited_state(self, index: np.ndarray, **values: Any) -> sim.State:
+    def _edited_state(self, index: np.ndarray, trusted: bool = False, **values: Any) -> sim.State:
         """The current state with ``values`` (position, orientation, linear_velocity,
-        angular_velocity; ``None`` keeps it) put into envs ``index``, each broadcast over them."""
+        angular_velocity; ``None`` keeps it) put into envs ``index``, each broadcast over them.
+        ``trusted``: the values come from the task's own reset, finite float64 arrays of shape
+        ``(len(index), width)``, so only the orientation's normalisation is applied."""
         k = len(index)
         copies = (np.array(a) for a in self.state.arrays())  # copies: states are values
         arrays = dict(zip(STATE_FIELDS, copies, strict=True))
         for name, value in values.items():
             if value is None:
+                continue
+            if trusted:
+                arrays[name][index, 0] = unit_quaternions(value) if name == "orientation" else value
                 continue
             arr = quaternions(value, name) if name == "orientation" else finite_array(value, name)
             width = arrays[name].shape[-1]

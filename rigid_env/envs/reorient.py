@@ -148,7 +148,7 @@ from .. import sim
 from ..sim.rotation import quat_rotate
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, unit_quaternions
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
@@ -249,7 +249,7 @@ class ReorientTask(HoldTask):
         tumble = _normalize(side * self.intermediate_axis + cfg.tumble_spread * g[:, 11:14])
         direction = np.where((u[:, 1] < cfg.tumble_fraction)[:, None], tumble, isotropic)
         omega = quat_rotate(q0, speed[:, None] * direction)  # body → world
-        self.set_state(index, orientation=q0, angular_velocity=omega, target=target)
+        self._set_state(index, q0, omega, target, trusted=True)
 
     def set_state(
         self,
@@ -262,11 +262,19 @@ class ReorientTask(HoldTask):
         (rad/s), target quaternion; each broadcasts over ``index``; ``None`` keeps the current.
         The hold timer, the reward terms and the previous action are cleared."""
         index = np.asarray(index, dtype=np.intp)
+        self._set_state(index, orientation, angular_velocity, target, trusted=False)
+
+    def _set_state(
+        self, index: np.ndarray, orientation: Any, angular_velocity: Any, target: Any, trusted: bool
+    ) -> None:
+        """:meth:`set_state`; ``trusted``: the values come from :meth:`reset_envs` (no checks,
+        see ``HoldTask._edited_state``)."""
         state = self._edited_state(
-            index, orientation=orientation, angular_velocity=angular_velocity
+            index, trusted, orientation=orientation, angular_velocity=angular_velocity
         )
         if target is not None:
-            self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
+            unit = unit_quaternions(target) if trusted else quaternions(target, "target")
+            self.target[index] = np.broadcast_to(unit, (len(index), 4))
         self.state = state
         self._start_episode(index)
         self._measure(index)
