@@ -136,11 +136,14 @@ class HoldTask(BatchedTask):
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
     per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
     :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
-    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`;
-    :meth:`set_state` ends with :meth:`_start_episode`.
+    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`, and may
+    override :meth:`_step_events`; the task allocates ``_meas`` (its width is its own) and
+    :meth:`set_state` ends with :meth:`_start_episode`, then ``_measure(index)``.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
-    off the state in one call, and the shared hold timer and reward terms are one more.
+    off the state in one call, and the shared hold timer and reward terms are one more. Its
+    buffers are allocated once; :meth:`observation` and :meth:`info` return copies, so nothing
+    a step returns is overwritten by the next.
     """
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
@@ -152,7 +155,7 @@ class HoldTask(BatchedTask):
     # What _measure(index) writes, rows index (buffers allocated once, in __init__; what leaves
     # the task is a copy):
     _rot: np.ndarray  # (N, 3, 3) R(q)
-    _meas: np.ndarray  # (N, M) float64: Ω (body axes, 3), angle error, |Ω|, then the task's
+    _meas: np.ndarray  # (N, M): Ω (body axes, 3), angle error, |Ω|, then the task's own
     _obs: np.ndarray  # (N, obs size) float32, in the order of observation_bounds
     _within_goal: np.ndarray  # (N,) bool
     _task_terms: np.ndarray  # (N, len(task_reward_terms)), the task's own reward terms
@@ -222,7 +225,7 @@ class HoldTask(BatchedTask):
     def _measure(self, index: np.ndarray) -> None:
         """Read everything off ``self.state`` (and ``prev_action``) for the envs ``index`` (an
         intp array), writing their rows of the buffers listed on the class: ``_rot``,
-        ``_angle``, ``_spin``, ``_obs`` (each part clipped to its bounds), ``_within_goal`` and
+        ``_meas``, ``_obs`` (each part clipped to its bounds), ``_within_goal`` and
         ``_task_terms`` (its own reward terms). Other rows keep their values: they belong to
         states that did not change."""
 
