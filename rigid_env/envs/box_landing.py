@@ -176,7 +176,7 @@ from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
+from .hold_task import OBS_LIMIT, STATE_FIELDS, HoldTask, HoldTaskConfig
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
 
@@ -299,7 +299,8 @@ class BoxLandingTask(HoldTask):
         self.face = np.full(n, FACES.index("-z" if self.random_face else str(cfg.target_face)))
         self._face_normal = FACE_NORMALS[self.face]
         self.touchdowns = np.zeros(n, dtype=np.int64)
-        self._bounce = np.zeros(n, dtype=bool)
+        self._no_contact_report = np.zeros(n, dtype=bool)  # touched, for a scene without one
+        self._touched = self._no_contact_report
         self._params = np.array(  # what landing_measure reads, in its order
             [
                 self.body.mass,
@@ -313,11 +314,12 @@ class BoxLandingTask(HoldTask):
                 cfg.speed_threshold,
                 cfg.spin_threshold,
                 cfg.face_weight / np.pi,
-                cfg.bounce_weight,
             ]
         )
-        self._measure()
-        self.touching = self._meas[:, 7] < cfg.contact_tolerance  # the clearance
+        self._meas = np.empty((n, 9))  # see kernels.landing_measure
+        self._ints = np.empty((n, 2), dtype=np.int64)
+        self._measure(self._all)
+        self.touching = self._clearance < cfg.contact_tolerance
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
@@ -369,14 +371,7 @@ class BoxLandingTask(HoldTask):
             face: Any = np.minimum((u[:, 8] * len(FACES)).astype(np.intp), len(FACES) - 1)
         else:
             face = cfg.target_face
-        self.set_state(
-            index,
-            position=position,
-            orientation=q,
-            linear_velocity=velocity,
-            angular_velocity=omega,
-            target_face=face,
-        )
+        self._set_state(index, (position, q, velocity, omega), face, trusted=True)
 
     def set_state(
         self,
@@ -393,64 +388,60 @@ class BoxLandingTask(HoldTask):
         hold timer, reward terms, touchdown count and previous action are cleared, and a box
         placed touching the ground does not count a touchdown."""
         index = np.asarray(index, dtype=np.intp)
-        state = self._edited_state(
-            index,
-            position=position,
-            orientation=orientation,
-            linear_velocity=linear_velocity,
-            angular_velocity=angular_velocity,
-        )
+        values = (position, orientation, linear_velocity, angular_velocity)
+        self._set_state(index, values, target_face, trusted=False)
+
+    def _set_state(
+        self, index: np.ndarray, values: tuple[Any, ...], target_face: Any, trusted: bool
+    ) -> None:
+        """:meth:`set_state` with ``values`` in ``STATE_FIELDS`` order; ``trusted``: they come
+        from :meth:`reset_envs` (no checks, see ``HoldTask._edited_state``)."""
+        state = self._edited_state(index, trusted, **dict(zip(STATE_FIELDS, values, strict=True)))
         if target_face is not None:
             face = _face_index(target_face)
-            self.face = np.array(self.face)
             self.face[index] = np.broadcast_to(face, (len(index),))
-            self._face_normal = FACE_NORMALS[self.face]  # changes only here
+            self._face_normal[index] = FACE_NORMALS[self.face[index]]  # changes only here
         self.state = state
         self._start_episode(index)
         self.touchdowns[index] = 0
-        self._measure()
-        self.touching = np.array(self.touching)
-        self.touching[index] = self._meas[index, 7] < self.config.contact_tolerance
+        self._measure(index)
+        self.touching[index] = self._clearance[index] < self.config.contact_tolerance
 
     # --- stepping -------------------------------------------------------------------------------
 
     def _advance(self, torque: np.ndarray) -> None:
         """Step the physics for one action (``frame_skip`` steps, the torque fixed in the body
-        frame, one simulator call) and count a touchdown when the box touched the ground during
-        this action period after a period in which it did not. The touch switches see every
-        contact that carried an impulse during the period (``ContactReport.touched``, merged
-        over its physics steps: a bounce that begins and ends within one physics step counts)
-        and a lowest corner within ``contact_tolerance`` at its end."""
+        frame, one simulator call) and keep which envs' contacts carried an impulse during
+        the period (``ContactReport.touched``, merged over its physics steps: a bounce that
+        begins and ends within one physics step counts) for :meth:`_step_events`."""
         self.state = self.scene.step(
             self.state, body_torque=torque[:, None, :], steps=self.frame_skip
         )
-        touched = np.zeros(self.num_envs, dtype=bool)
-        kernels.latch_touch(
-            self.state.position,
-            self.state.orientation,
-            self.corners,
-            self.config.contact_tolerance,
-            touched,
-        )
         report = self.scene.report.get("contacts")
-        if report is not None and report.touched is not None:
-            touched |= report.touched
-        # touchdown = touched & ~touching; bounce = touchdown after an earlier one; count it.
-        self._bounce = np.empty(self.num_envs, dtype=bool)
-        kernels.count_touchdowns(touched, self.touching, self.touchdowns, self._bounce)
-        self.touching = touched
+        touched = None if report is None else report.touched
+        self._touched = self._no_contact_report if touched is None else touched
 
-    def _measure(self) -> None:
-        """Everything the observation, reward and info read off the current state: one
-        compiled call (``kernels.landing_measure``)."""
-        n = self.num_envs
-        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
-        self._ints = np.empty((n, 2), dtype=np.int64)
-        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
-        self._within_goal = np.empty(n, dtype=bool)
-        self._next_terms = np.zeros((n, len(self.reward_terms)))
+    def _step_events(self) -> None:
+        """Count a touchdown when the box touched the ground during this action period (a
+        contact impulse, or the lowest corner within ``contact_tolerance`` at its end: the
+        clearance :meth:`_measure` just wrote) after a period in which it did not; a touchdown
+        after the first is a bounce and sets the bounce term."""
+        kernels.count_touchdowns(
+            self._clearance,
+            self.config.contact_tolerance,
+            self._touched,
+            self.touching,
+            self.touchdowns,
+            self.config.bounce_weight,
+            self._task_terms,
+        )
+
+    def _measure(self, index: np.ndarray) -> None:
+        """Everything the observation, reward and info read off the state of envs ``index``:
+        one compiled call (``kernels.landing_measure``)."""
         state = self.state
         kernels.landing_measure(
+            index,
             state.position,
             state.orientation,
             state.linear_velocity,
@@ -460,17 +451,23 @@ class BoxLandingTask(HoldTask):
             self.inertia,
             self._params,
             self.prev_action,
-            self._bounce,
             self._obs,
             self._rot,
             self._meas,
             self._ints,
             self._within_goal,
-            self._next_terms,
+            self._task_terms,
         )
-        meas = self._meas
-        self._omega, self._angle, self._spin = meas[:, 0:3], meas[:, 3], meas[:, 4]
-        self._down_face = self._ints[:, 1]
+
+    @property
+    def _clearance(self) -> np.ndarray:
+        """(N,) the lowest corner's height, m."""
+        return self._meas[:, 7]
+
+    @property
+    def _down_face(self) -> np.ndarray:
+        """(N,) the face nearest down, index into FACES."""
+        return self._ints[:, 1]
 
     def _task_info(self) -> dict[str, np.ndarray]:
         meas = self._meas

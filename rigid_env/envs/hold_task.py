@@ -43,6 +43,13 @@ STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity"
 Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
 
 
+def unit_quaternions(q: Any) -> np.ndarray:
+    """``q / |q|`` along the last axis: the arithmetic of ``validation.quaternions`` without its
+    checks, for values a task computed itself."""
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class HoldTaskConfig:
     """Arguments every body-torque hold task takes, validated when the config is built.
@@ -129,11 +136,14 @@ class HoldTask(BatchedTask):
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
     per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
     :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
-    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`;
-    :meth:`set_state` ends with :meth:`_start_episode`.
+    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`, and may
+    override :meth:`_step_events`; the task allocates ``_meas`` (its width is its own) and
+    :meth:`set_state` ends with :meth:`_start_episode`, then ``_measure(index)``.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
-    off the state in one call, and the shared hold timer and reward terms are one more.
+    off the state in one call, and the shared hold timer and reward terms are one more. Its
+    buffers are allocated once; :meth:`observation` and :meth:`info` return copies, so nothing
+    a step returns is overwritten by the next.
     """
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
@@ -142,13 +152,13 @@ class HoldTask(BatchedTask):
 
     config: HoldTaskConfig
     state: sim.State
-    # What _measure sets (each a fresh array):
+    # What _measure(index) writes, rows index (buffers allocated once, in __init__; what leaves
+    # the task is a copy):
     _rot: np.ndarray  # (N, 3, 3) R(q)
-    _angle: np.ndarray  # (N,) the task's angle error
-    _spin: np.ndarray  # (N,) |Ω|
+    _meas: np.ndarray  # (N, M): Ω (body axes, 3), angle error, |Ω|, then the task's own
     _obs: np.ndarray  # (N, obs size) float32, in the order of observation_bounds
     _within_goal: np.ndarray  # (N,) bool
-    _next_terms: np.ndarray  # (N, len(reward_terms)), the task's own terms in its first columns
+    _task_terms: np.ndarray  # (N, len(task_reward_terms)), the task's own reward terms
 
     def __init__(self, num_envs: int, config: HoldTaskConfig | None = None, **kwargs: Any):
         self.num_envs = positive_int(num_envs, "num_envs")
@@ -198,6 +208,11 @@ class HoldTask(BatchedTask):
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
+        self._all = np.arange(n)  # _measure's index for every env
+        self._rot = np.empty((n, 3, 3))
+        self._obs = np.empty((n, size), np.float32)
+        self._within_goal = np.empty(n, dtype=bool)
+        self._task_terms = np.zeros((n, len(self.task_reward_terms)))
 
     @classmethod
     def structure(cls) -> dict[str, int]:
@@ -207,10 +222,16 @@ class HoldTask(BatchedTask):
     # --- what a task supplies -------------------------------------------------------------------
 
     @abstractmethod
-    def _measure(self) -> None:
-        """Read everything off ``self.state`` (and ``prev_action``), setting the fresh arrays
-        listed on the class: ``_rot``, ``_angle``, ``_spin``, ``_obs`` (each part clipped to
-        its bounds), ``_within_goal`` and ``_next_terms`` (its own reward terms)."""
+    def _measure(self, index: np.ndarray) -> None:
+        """Read everything off ``self.state`` (and ``prev_action``) for the envs ``index`` (an
+        intp array), writing their rows of the buffers listed on the class: ``_rot``,
+        ``_meas``, ``_obs`` (each part clipped to its bounds), ``_within_goal`` and
+        ``_task_terms`` (its own reward terms). Other rows keep their values: they belong to
+        states that did not change."""
+
+    def _step_events(self) -> None:
+        """After a step's :meth:`_measure`: what the task counts per action period (events
+        that depend on the previous period as well as on the state); none by default."""
 
     @abstractmethod
     def _task_info(self) -> dict[str, np.ndarray]:
@@ -231,20 +252,41 @@ class HoldTask(BatchedTask):
 
     # --- shared ---------------------------------------------------------------------------------
 
+    # Views of _meas taken on use (a view kept as an attribute would not survive pickling).
+    @property
+    def _omega(self) -> np.ndarray:
+        """(N, 3) body angular velocity Ω, rad/s."""
+        return self._meas[:, 0:3]
+
+    @property
+    def _angle(self) -> np.ndarray:
+        """(N,) the task's angle error, rad."""
+        return self._meas[:, 3]
+
+    @property
+    def _spin(self) -> np.ndarray:
+        """(N,) |Ω|, rad/s."""
+        return self._meas[:, 4]
+
     def _start_episode(self, index: np.ndarray) -> None:
         """Clear the per-episode memory of envs ``index`` (after a reset or a hand-built state)."""
         self.prev_action[index] = 0.0
         self.hold[index] = 0
         self.terms[index] = 0.0
 
-    def _edited_state(self, index: np.ndarray, **values: Any) -> sim.State:
+    def _edited_state(self, index: np.ndarray, trusted: bool = False, **values: Any) -> sim.State:
         """The current state with ``values`` (position, orientation, linear_velocity,
-        angular_velocity; ``None`` keeps it) put into envs ``index``, each broadcast over them."""
+        angular_velocity; ``None`` keeps it) put into envs ``index``, each broadcast over them.
+        ``trusted``: the values come from the task's own reset, finite float64 arrays of shape
+        ``(len(index), width)``, so only the orientation's normalisation is applied."""
         k = len(index)
         copies = (np.array(a) for a in self.state.arrays())  # copies: states are values
         arrays = dict(zip(STATE_FIELDS, copies, strict=True))
         for name, value in values.items():
             if value is None:
+                continue
+            if trusted:
+                arrays[name][index, 0] = unit_quaternions(value) if name == "orientation" else value
                 continue
             arr = quaternions(value, name) if name == "orientation" else finite_array(value, name)
             width = arrays[name].shape[-1]
@@ -255,23 +297,26 @@ class HoldTask(BatchedTask):
         return sim.State(**arrays)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Apply validated ``action`` (N, 3), which the task keeps as ``prev_action`` (the
+        caller passes its own copy); reward and terminated are fresh arrays."""
         self._advance(action * self.max_torque)  # body-frame torque, (N, 3)
         self.prev_action = action
-        self._measure()
-        n, cfg = self.num_envs, self.config
-        terms, reward, success = self._next_terms, np.empty(n), np.empty(n, dtype=bool)
+        self._measure(self._all)
+        self._step_events()
+        n = self.num_envs
+        reward, success = np.empty(n), np.empty(n, dtype=bool)
         kernels.hold_step(
             self._within_goal,
             self.hold,
             self._spin,
             action,
             self._hold_params,
-            terms,
+            self._task_terms,
+            self.terms,
             reward,
             success,
         )
-        self.terms = terms
-        terminated = success if cfg.terminate_on_success else np.zeros(n, bool)
+        terminated = success if self.config.terminate_on_success else np.zeros(n, bool)
         return reward, terminated
 
     def observation(self) -> np.ndarray:

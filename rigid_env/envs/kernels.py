@@ -74,43 +74,39 @@ def world_torque(q: Arr, torque: Arr, out: Arr) -> None:
 
 
 @njit(cache=True)
-def latch_touch(x: Arr, q: Arr, corners: Arr, tolerance: float, touched: Arr) -> None:
-    """``touched[e] |=`` (the box's lowest corner is below ``tolerance``): z + min over
-    corners c of (R c)_z, R's last row taken from q."""
-    r = np.empty((3, 3))
-    for e in range(q.shape[0]):
-        rotation(q[e, 0], r)
-        low = math.inf
-        for c in range(corners.shape[0]):
-            h = r[2, 0] * corners[c, 0] + r[2, 1] * corners[c, 1] + r[2, 2] * corners[c, 2]
-            low = min(low, h)
-        if x[e, 0, 2] + low < tolerance:
-            touched[e] = True
-
-
-@njit(cache=True)
-def count_touchdowns(touched: Arr, touching: Arr, touchdowns: Arr, bounce: Arr) -> None:
-    """A touchdown is touching the ground now (``touched`` during this action) after not
-    touching it (``touching``, the previous action); ``touchdowns`` counts them in place and
-    ``bounce`` marks a touchdown that is not the first."""
-    for e in range(touched.shape[0]):
-        touchdown = touched[e] and not touching[e]
-        bounce[e] = touchdown and touchdowns[e] > 0
+def count_touchdowns(
+    clearance: Arr, tolerance: float, touched: Arr, touching: Arr, touchdowns: Arr,
+    bounce_coef: float, terms: Arr,
+) -> None:  # fmt: skip
+    """Touchdowns of one action period, per env. The box touched the ground during the period
+    if a contact carried an impulse in it (``touched``, the contact report's) or its lowest
+    corner ends it within ``tolerance`` (``clearance``, as ``landing_measure`` wrote it). A
+    touchdown is touching now after not touching in the previous period (``touching``, updated
+    in place); ``touchdowns`` counts them in place, and one that is not the first (a bounce)
+    writes ``-bounce_coef`` into ``terms[:, 1]`` (else ``-bounce_coef · 0``)."""
+    for e in range(clearance.shape[0]):
+        now = touched[e] or clearance[e] < tolerance
+        touchdown = now and not touching[e]
+        terms[e, 1] = -bounce_coef * (1.0 if touchdown and touchdowns[e] > 0 else 0.0)
         touchdowns[e] += touchdown
+        touching[e] = now
 
 
 @njit(cache=True)
 def hold_step(
-    within: Arr, hold: Arr, spin: Arr, action: Arr, params: Arr, terms: Arr, reward: Arr,
-    success: Arr,
+    within: Arr, hold: Arr, spin: Arr, action: Arr, params: Arr, task_terms: Arr, terms: Arr,
+    reward: Arr, success: Arr,
 ) -> None:  # fmt: skip
     """The shared end of a step, per env, with ``params`` = [hold_steps, spin_coef, ctrl_coef,
-    bonus]: the hold timer (``hold`` updated in place), success, the shared reward terms
-    written after the task's own in ``terms`` (N, T + 3): spin (``-spin_coef |Ω|``), control
-    (``-ctrl_coef |a|²``), success bonus; and their sum, in column order, into ``reward``."""
+    bonus]: the hold timer (``hold`` updated in place), success, the reward terms into
+    ``terms`` (N, T + 3): the task's own ``task_terms`` (N, T), then spin
+    (``-spin_coef |Ω|``), control (``-ctrl_coef |a|²``), success bonus; and their sum, in
+    column order, into ``reward``."""
     hold_steps, spin_coef, ctrl_coef, bonus = params[0], params[1], params[2], params[3]
-    t = terms.shape[1] - 3
+    t = task_terms.shape[1]
     for e in range(within.shape[0]):
+        for k in range(t):
+            terms[e, k] = task_terms[e, k]
         hold[e] = hold[e] + 1 if within[e] else 0
         done = hold[e] >= hold_steps
         success[e] = done
@@ -126,10 +122,11 @@ def hold_step(
 
 @njit(cache=True)
 def reorient_measure(
-    q: Arr, w: Arr, target: Arr, inertia: Arr, params: Arr, prev_action: Arr, obs: Arr,
-    rot: Arr, meas: Arr, within: Arr, terms: Arr,
+    index: Arr, q: Arr, w: Arr, target: Arr, inertia: Arr, params: Arr, prev_action: Arr,
+    obs: Arr, rot: Arr, meas: Arr, within: Arr, terms: Arr,
 ) -> None:  # fmt: skip
-    """Everything Reorient reads off a state, per env. In: ``q`` (N, 1, 4), ``w`` (N, 1, 3)
+    """Everything Reorient reads off a state, for the envs ``index`` (rows of the outputs
+    not in it are left as they are). In: ``q`` (N, 1, 4), ``w`` (N, 1, 3)
     world angular velocity, ``target`` (N, 4), ``inertia`` (3, 3) body axes, ``params`` =
     [spin_scale, observation limit, angle_threshold, spin_threshold, angle_coef],
     ``prev_action`` (N, 3). Out: ``obs`` (N, 10) float32 [q_err (w >= 0), clip(Ω / spin_scale,
@@ -141,7 +138,7 @@ def reorient_measure(
     spin_scale, limit, angle_threshold, spin_threshold, angle_coef = (
         params[0], params[1], params[2], params[3], params[4]
     )  # fmt: skip
-    for e in range(q.shape[0]):
+    for e in index:
         r = rot[e]
         qe = q[e, 0]
         rotation(qe, r)
@@ -178,29 +175,30 @@ def reorient_measure(
 
 @njit(cache=True)
 def landing_measure(
-    x: Arr, q: Arr, v: Arr, w: Arr, face_normal: Arr, corners: Arr, inertia: Arr, params: Arr,
-    prev_action: Arr, bounce: Arr, obs: Arr, rot: Arr, meas: Arr, ints: Arr, within: Arr,
+    index: Arr, x: Arr, q: Arr, v: Arr, w: Arr, face_normal: Arr, corners: Arr, inertia: Arr,
+    params: Arr, prev_action: Arr, obs: Arr, rot: Arr, meas: Arr, ints: Arr, within: Arr,
     terms: Arr,
 ) -> None:  # fmt: skip
-    """Everything BoxLanding reads off a state, per env. In: the state's (N, 1, ·) arrays,
+    """Everything BoxLanding reads off a state, for the envs ``index`` (rows of the outputs
+    not in it are left as they are). In: the state's (N, 1, ·) arrays,
     ``face_normal`` (N, 3) the target face's outward normal (body axes), ``corners`` (8, 3),
     ``inertia`` (3, 3), ``params`` = [mass, gravity, spin_scale, velocity_scale, height_limit,
     observation limit, contact_tolerance, face_threshold, speed_threshold, spin_threshold,
-    face_coef, bounce_weight], ``prev_action`` (N, 3), ``bounce`` (N,) whether this step's
-    touchdown was a bounce. Out: ``obs`` (N, 25) float32 in the order of the task's
+    face_coef], ``prev_action`` (N, 3). Out: ``obs`` (N, 25) float32 in the order of the task's
     observation parts; ``rot`` R(q); ``meas`` (N, 9) [Ω = Rᵀ ω (3), θ between the face normal
     and world −z (by atan2: arccos loses digits near 0), |Ω|, speed, height, clearance (the
     lowest corner's height), energy]; ``ints`` (N, 2) [corners in contact, the face nearest
-    down (index into FACES)]; ``within`` the goal; ``terms[:, :2]`` face and bounce terms.
+    down (index into FACES)]; ``within`` the goal; ``terms[:, 0]`` the face term (the bounce
+    term, ``terms[:, 1]``, is ``count_touchdowns``'s, from the clearance written here).
 
     A corner's gap is z + (R c)_z, with world +z in body axes (Rᵀ e_z) being R's last row."""
     mass, gravity, spin_scale, velocity_scale, height_limit, limit = (
         params[0], params[1], params[2], params[3], params[4], params[5]
     )  # fmt: skip
-    tolerance, face_threshold, speed_threshold, spin_threshold, face_coef, bounce_weight = (
-        params[6], params[7], params[8], params[9], params[10], params[11]
+    tolerance, face_threshold, speed_threshold, spin_threshold, face_coef = (
+        params[6], params[7], params[8], params[9], params[10]
     )  # fmt: skip
-    for e in range(q.shape[0]):
+    for e in index:
         r = rot[e]
         m = meas[e]
         rotation(q[e, 0], r)
@@ -249,7 +247,6 @@ def landing_measure(
             and spin < spin_threshold
         )
         terms[e, 0] = -face_coef * angle
-        terms[e, 1] = -bounce_weight * (1.0 if bounce[e] else 0.0)
         mx = inertia[0, 0] * ox + inertia[0, 1] * oy + inertia[0, 2] * oz  # I Ω, body axes
         my = inertia[1, 0] * ox + inertia[1, 1] * oy + inertia[1, 2] * oz
         mz = inertia[2, 0] * ox + inertia[2, 1] * oy + inertia[2, 2] * oz

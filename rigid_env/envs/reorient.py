@@ -148,7 +148,7 @@ from .. import sim
 from ..sim.rotation import quat_rotate
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig
+from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, unit_quaternions
 from .rendering import Camera, Frame, Item, Mesh, View
 from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
@@ -224,7 +224,8 @@ class ReorientTask(HoldTask):
                 cfg.angle_weight / np.pi,
             ]
         )
-        self._measure()
+        self._meas = np.empty((n, 9))  # see kernels.reorient_measure
+        self._measure(self._all)
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
@@ -248,7 +249,7 @@ class ReorientTask(HoldTask):
         tumble = _normalize(side * self.intermediate_axis + cfg.tumble_spread * g[:, 11:14])
         direction = np.where((u[:, 1] < cfg.tumble_fraction)[:, None], tumble, isotropic)
         omega = quat_rotate(q0, speed[:, None] * direction)  # body → world
-        self.set_state(index, orientation=q0, angular_velocity=omega, target=target)
+        self._set_state(index, q0, omega, target, trusted=True)
 
     def set_state(
         self,
@@ -261,26 +262,30 @@ class ReorientTask(HoldTask):
         (rad/s), target quaternion; each broadcasts over ``index``; ``None`` keeps the current.
         The hold timer, the reward terms and the previous action are cleared."""
         index = np.asarray(index, dtype=np.intp)
+        self._set_state(index, orientation, angular_velocity, target, trusted=False)
+
+    def _set_state(
+        self, index: np.ndarray, orientation: Any, angular_velocity: Any, target: Any, trusted: bool
+    ) -> None:
+        """:meth:`set_state`; ``trusted``: the values come from :meth:`reset_envs` (no checks,
+        see ``HoldTask._edited_state``)."""
         state = self._edited_state(
-            index, orientation=orientation, angular_velocity=angular_velocity
+            index, trusted, orientation=orientation, angular_velocity=angular_velocity
         )
         if target is not None:
-            self.target[index] = np.broadcast_to(quaternions(target, "target"), (len(index), 4))
+            unit = unit_quaternions(target) if trusted else quaternions(target, "target")
+            self.target[index] = np.broadcast_to(unit, (len(index), 4))
         self.state = state
         self._start_episode(index)
-        self._measure()
+        self._measure(index)
 
     # --- measurements, observation, reward ------------------------------------------------------
 
-    def _measure(self) -> None:
+    def _measure(self, index: np.ndarray) -> None:
         """Error quaternion, body angular velocity, angle, spin, observation, goal and the angle
-        term of the current state: one compiled call (``kernels.reorient_measure``)."""
-        n = self.num_envs
-        self._rot, self._meas = np.empty((n, 3, 3)), np.empty((n, 9))
-        self._obs = np.empty((n, self.single_observation_space.shape[0]), np.float32)
-        self._within_goal = np.empty(n, dtype=bool)
-        self._next_terms = np.zeros((n, len(self.reward_terms)))
+        term of envs ``index``: one compiled call (``kernels.reorient_measure``)."""
         kernels.reorient_measure(
+            index,
             self.state.orientation,
             self.state.angular_velocity,
             self.target,
@@ -291,12 +296,7 @@ class ReorientTask(HoldTask):
             self._rot,
             self._meas,
             self._within_goal,
-            self._next_terms,
-        )
-        self._omega, self._angle, self._spin = (
-            self._meas[:, 0:3],
-            self._meas[:, 3],
-            self._meas[:, 4],
+            self._task_terms,
         )
 
     def _task_info(self) -> dict[str, np.ndarray]:

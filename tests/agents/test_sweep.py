@@ -102,27 +102,95 @@ def wait_for(condition, proc: subprocess.Popen, what: str, timeout: float = TIME
     raise AssertionError(f"timed out waiting for {what}")
 
 
+# Put on PYTHONPATH of the local sweep only: Python imports it at start-up in every process of
+# the sweep (driver and Ray workers). Once agents.train is imported, its train() first waits
+# for a release file of its run folder (or "all") in $SWEEP_TEST_GATE, so the test decides
+# which trial finishes before the interrupt and which are still running.
+GATE_HOOK = """
+import importlib.abc, importlib.util, os, sys, time
+from pathlib import Path
+
+GATE = Path(os.environ["SWEEP_TEST_GATE"])
+
+
+def gated(train):
+    def wait_then_train(*args, out, **kwargs):
+        run = Path(out)
+        own = GATE / f"{run.parent.name}-{run.name}"
+        while not (own.exists() or (GATE / "all").exists()):
+            time.sleep(0.1)
+        return train(*args, out=out, **kwargs)
+
+    return wait_then_train
+
+
+class GateTrain(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name != "agents.train":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        load = spec.loader.exec_module
+
+        def exec_module(module):
+            load(module)
+            module.train = gated(module.train)
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+sys.meta_path.insert(0, GateTrain())
+"""
+
+
+def release(gate: Path, folder: Path | None = None) -> None:
+    """Let the trial of run folder ``folder`` (None: every trial) start training."""
+    (gate / ("all" if folder is None else f"{folder.parent.name}-{folder.name}")).touch()
+
+
+def saved_as_finished(out: Path, folder: Path) -> bool:
+    """Whether Ray Tune's saved experiment state calls the trial of ``folder`` finished."""
+    trial = finished(folder)
+    if trial is None or not list((out / sweep.EXPERIMENT).glob("experiment_state-*.json")):
+        return False
+    try:
+        return trial["trial_id"] in sweep.finished_trial_ids(out)
+    except json.JSONDecodeError:  # Tune copies its state file over the old one: read mid-copy
+        return False
+
+
 @pytest.fixture(scope="module")
 def local_sweep(tmp_path_factory, local_env):
-    """A local sweep of 2 configs x 2 seeds on 2 CPUs, interrupted (SIGINT, as Ctrl-C) once a
-    trial has finished and another runs, then resumed to the end. One sweep serves the resume
-    test and the local-sweep test (a Ray start and cold trial processes cost tens of seconds)."""
-    out = tmp_path_factory.mktemp("local") / "sweep"
+    """A local sweep of 2 configs x 2 seeds on 2 CPUs, interrupted (SIGINT, as Ctrl-C) once one
+    trial has finished, as Tune's saved state records, while others wait at the gate, then
+    resumed to the end. One sweep serves the resume test and the local-sweep test (a Ray start
+    and cold trial processes cost tens of seconds)."""
+    tmp = tmp_path_factory.mktemp("local")
+    out, gate, hook = tmp / "sweep", tmp / "gate", tmp / "hook"
+    gate.mkdir()
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(GATE_HOOK)
+    # Tune saves its state every 10 s or more by default; every second keeps the wait short.
+    env = {
+        **local_env,
+        "PYTHONPATH": str(hook),
+        "SWEEP_TEST_GATE": str(gate),
+        "TUNE_GLOBAL_CHECKPOINT_S": "1",
+    }
     cmd = sweep_cmd(
         "--env", ID, "--algo", "ppo", "--seeds", "2", "--search", "n_epochs=grid(1, 2)",
         "--set", *TINY, "--num-cpus", "2", "--out", str(out),
     )  # fmt: skip
     proc = subprocess.Popen(
-        cmd, env=local_env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        cmd, env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     try:
-
-        def one_done_one_running():
-            done = [f for f in folders(out) if finished(f)]
-            running = [f for f in folders(out) if not finished(f)]
-            return done and running
-
-        wait_for(one_done_one_running, proc, "a trial finished while another runs")
+        # Both CPUs' trials start and wait; the first one is let through and finishes.
+        first, second = wait_for(lambda: folders(out)[:2] if len(folders(out)) >= 2 else None,
+                                 proc, "two trials started")  # fmt: skip
+        release(gate, first)
+        wait_for(lambda: saved_as_finished(out, first), proc, "Tune's state to save the first")
         proc.send_signal(signal.SIGINT)
         interrupted = proc.communicate(timeout=TIMEOUT)[0]
     finally:
@@ -132,11 +200,14 @@ def local_sweep(tmp_path_factory, local_env):
     code = proc.returncode
     started = folders(out)  # trials that began before the sweep stopped
     partial = json.loads((out / sweep.RESULTS_FILE).read_text())
-    resumed = run(sweep_cmd("--resume", str(out), "--num-cpus", "2"), local_env)
+    release(gate)
+    resumed = run(sweep_cmd("--resume", str(out), "--num-cpus", "2"), env)
     return {
         "out": out,
         "code": code,
         "interrupted": interrupted,
+        "first": first,
+        "second": second,
         "started": started,
         "partial": partial,
         "resumed": resumed.stdout,
@@ -148,19 +219,16 @@ def test_interrupted_sweep_resumes_without_rerunning_finished_trials(local_sweep
     assert local_sweep["code"] != 0, local_sweep["interrupted"][-4000:]
     assert f"--resume {out}" in local_sweep["interrupted"]
     assert not partial["complete"]
-    # Finished before the interrupt, as Ray Tune's saved state says (an interrupted trial may
-    # have written its folder while Tune was stopping it: Tune runs it again, so it does not count).
+    # Finished before the interrupt, as Ray Tune's saved state says: only the trial let through.
     done = {
         out / "runs" / e["config_key"] / f"seed-{f['seed']}"
         for e in partial["configs"]
         for f in e["final"]
     }
-    # Usually a trial had finished and another was running at the interrupt. Tune saves its
-    # state periodically, so on a loaded machine a trial that wrote its folder may not be in
-    # that state yet (it then counts as stopped and runs again), and a running one may have
-    # finished while Tune was stopping: either side may be empty, the counts must still hold.
-    stopped = set(local_sweep["started"]) - done
-    assert partial["trials_finished"] == len(done)
+    stopped = set(local_sweep["started"]) - done  # held at the gate when the sweep stopped
+    assert done == {local_sweep["first"]}
+    assert local_sweep["second"] in stopped
+    assert partial["trials_finished"] == len(done) == 1
     for folder in folders(out):
         assert finished(folder) is not None
         # Finished ones were not run again, stopped ones ran again, the others ran once.
