@@ -41,7 +41,7 @@ contacts). ``contact`` columns: ``ARM`` (3, world vector from the body's centre 
 point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a float); the
 columns from ``SOLVER`` on belong to the contact solve and restitution (``contact_*.py``: the
 rows of J̃, the tangent, the gap after the impacts, their impulse, a body's velocities after the
-velocity update; see ``layout.py``). Scenes whose contacts are all ground contacts run their
+velocity update and its orientation along the impacts' path; see ``layout.py``). Scenes whose contacts are all ground contacts run their
 contact stages compiled; a scene with body–body contacts has no kernel for them (numpy). Ground
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected

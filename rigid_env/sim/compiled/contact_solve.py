@@ -5,6 +5,10 @@ Order as numpy's: free contact velocities and targets (the gaps where the impact
 over the time left), the particle start probed by one sweep, then Gauss–Seidel from the
 particle start or from the active-set start (``SolverSettings.start``), and an unconverged
 impulse cut back so it adds no kinetic energy (``dissipative``).
+
+numba's disk cache checks only a kernel's own file, so a cached ``solve`` keeps the code of the
+``contact_starts`` it was compiled with: a change there (the active-set start's
+``PUSH_TOLERANCE``) must come with a change of this file, or the cache directory cleared.
 """
 
 from __future__ import annotations
