@@ -258,7 +258,7 @@ class LimitEnergy:
         q0 = start.orientation.reshape(-1, n, 4)[idx]
         moved = np.zeros(len(idx), bool) if path is None else path.elapsed > 0
         rot_path = rot0
-        if moved.any():
+        if path is not None and moved.any():
             q0 = np.where(moved[:, None, None], path.orientation, q0)
             rot_path = np.where(moved[:, None, None, None], quat_to_matrix(q0), rot0)
         # KE at the end orientation exp(h ω) q_path equals KE at q_path (ω is its axis).
@@ -289,7 +289,7 @@ class LimitEnergy:
         if np.any(f < 1):
             u = u * f[:, None, None]
             _write(ctx, idx, u)
-        if moved.any():
+        if path is not None and moved.any():
             # The position update turns q by Δt ω: start it at exp(−elapsed ω) q_path.
             q = np.array(ctx.q).reshape(-1, n, 4)
             back = quat_exp(-path.elapsed[:, None, None] * u[..., 3:])
