@@ -327,7 +327,14 @@ def stop_node(proc: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
 
 @pytest.fixture
 def cluster(ray_env, tmp_path):
-    """A head and a worker node on this machine, one CPU each; stopped whatever happens."""
+    """A head and a worker node on this machine, one CPU each; stopped whatever happens. Their
+    trials wait at the gate (``GATE_HOOK``) until the test releases them, so none can finish
+    before the test has killed the node it runs on."""
+    gate, hook = tmp_path / "gate", tmp_path / "hook"
+    gate.mkdir()
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(GATE_HOOK)
+    ray_env = {**ray_env, "PYTHONPATH": str(hook), "SWEEP_TEST_GATE": str(gate)}
     tmp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit
     address = f"127.0.0.2:{free_port()}"
     common = ["--num-cpus", "1", "--node-ip-address", "127.0.0.2"]
@@ -352,7 +359,13 @@ def cluster(ray_env, tmp_path):
         assert len(listed) == 2, listed
         head_id = next(node for node, is_head in listed if is_head)
         worker_id = next(node for node, is_head in listed if not is_head)
-        yield {"address": address, "head": head_id, "worker": worker_id, "worker_proc": nodes[1]}
+        yield {
+            "address": address,
+            "head": head_id,
+            "worker": worker_id,
+            "worker_proc": nodes[1],
+            "gate": gate,
+        }
     finally:
         for proc in reversed(nodes):
             stop_node(proc, signal.SIGKILL)  # a throwaway cluster: nothing to shut down gently
@@ -371,8 +384,9 @@ def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_
     )
     head, worker = cluster["head"], cluster["worker"]
     try:
-        # Two trials, one CPU per node: they start together, one on each node. Once both run,
-        # kill the worker node (SIGKILL to its raylet and workers, as a machine lost).
+        # Two trials, one CPU per node: they start together, one on each node, and wait at the
+        # gate. Once both run, kill the worker node (SIGKILL to its raylet and workers, as a
+        # machine lost), then let every trial train.
         def running_on_both():
             running = {attempts(f)[-1]["node_id"]: f for f in folders(out) if attempts(f)}
             return running.get(worker) if set(running) == {head, worker} else None
@@ -380,6 +394,7 @@ def test_cluster_runs_trials_on_both_nodes_and_retries_a_lost_one(tmp_path, ray_
         lost = wait_for(running_on_both, proc, "a trial running on each node")
         assert finished(lost) is None
         stop_node(cluster["worker_proc"], signal.SIGKILL)
+        release(cluster["gate"])
         output = proc.communicate(timeout=TIMEOUT)[0]
     finally:
         if proc.poll() is None:
