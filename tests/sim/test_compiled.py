@@ -237,3 +237,17 @@ def test_composition_follows_the_stage_tuple():
     assert [f"force_{i}(" in forces for i in range(3)] == [True, True, True]
     free = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled")
     assert "force_0" not in free._driver.source
+
+
+def test_lapack_the_compiled_kernels_call_is_a_core_dependency():
+    """numba's np.linalg calls LAPACK through scipy: a compiled kernel using it fails to compile
+    ("scipy 0.16+ is required for linear algebra") on an install without scipy, which the rl
+    extra alone did not bring."""
+    from importlib import metadata
+    from pathlib import Path
+
+    sources = Path(compiled_backend.__file__).parent.glob("*.py")
+    if not any("np.linalg" in path.read_text() for path in sources):
+        return
+    core = [r for r in metadata.requires("rigid-env") or [] if "extra ==" not in r]
+    assert any(r.replace(" ", "").lower().startswith("scipy") for r in core), core
