@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from tiny_budgets import TINY_SET
 
 from agents import evaluate, run_folder, train_cli
 from agents.train import resume, train
@@ -33,15 +34,6 @@ TINY = dict(
     eval_episodes=2,
     policy_kwargs={"net_arch": [8]},
 )
-TINY_ARGS = [
-    "--set",
-    "n_steps=32",
-    "batch_size=32",
-    "n_epochs=1",
-    "eval_freq=100000",
-    "eval_episodes=2",
-    "policy_kwargs={net_arch: [8]}",
-]
 
 
 def stop_after(polls: int):
@@ -160,7 +152,7 @@ def start_training(folder: Path, extra: list[str]) -> subprocess.Popen:
     args = ["--timesteps", "100000", "--n-envs", "2", "--no-progress", "--out", "run"]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.Popen(
-        [sys.executable, "-m", "agents.train", *args, *TINY_ARGS, *extra],
+        [sys.executable, "-m", "agents.train", *args, *TINY_SET, *extra],
         cwd=folder,
         env=env,
         stdout=(folder / "stdout.txt").open("w"),

@@ -8,26 +8,13 @@ import json
 from contextlib import contextmanager
 from pathlib import Path
 
+from tiny_budgets import TINY_SET
+
 from agents import main_job, run_folder
 from rigid_env import cli
 from rigid_env.bench.readme import main_job_summary
 
-TINY = [
-    "--timesteps",
-    "64",
-    "--n-envs",
-    "2",
-    "--set",
-    "n_steps=32",
-    "batch_size=32",
-    "n_epochs=1",
-    "eval_freq=100000",
-    "eval_episodes=2",
-    "policy_kwargs={net_arch: [8]}",
-    "--episodes",
-    "2",
-    "--no-progress",
-]
+TINY = ["--timesteps", "64", "--n-envs", "2", *TINY_SET, "--episodes", "2", "--no-progress"]
 
 
 def stop_at_poll(polls: int):

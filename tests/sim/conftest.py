@@ -15,6 +15,7 @@ NUMPY_ONLY = {
     "test_box_box.py": "body–body contact scenes step with numpy on either backend",
     "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
     "test_compiled_contacts.py": "compares the backends itself (explicit backend= everywhere)",
+    "test_compiled_cache.py": "tests numba's cache, not a step",
 }
 
 

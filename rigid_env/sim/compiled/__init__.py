@@ -102,3 +102,8 @@ sources, imports it, and numba caches the compiled driver to disk (``cache=True`
 per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step
 runs.
 """
+
+from .cache import install
+
+# Before any kernel module compiles: numba's cache then notices an edit of any simulator file.
+install()

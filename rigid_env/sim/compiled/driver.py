@@ -15,9 +15,9 @@ stage tuple compiles once, ever, and later processes import it from the cache.
 
 The generated module lives in the cache directory (``RIGID_ENV_CACHE_DIR``, else
 ``compiled/__pycache__/drivers`` in the package when writable, else
-``~/.cache/rigid_env/drivers``), named by a hash of its source and of every kernel source in
-this package, so editing a kernel gives a new driver (numba alone would not notice: its cache
-checks only the caller's own file).
+``~/.cache/rigid_env/drivers``), named by a hash of its source and of every simulator source
+(``cache.sources_hash``), so editing a kernel gives a new driver; ``cache.py`` makes numba's
+own cache of every kernel notice such an edit too.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ import numpy as np
 
 from ..state import ORIENTATION_TOLERANCE
 from . import layout
+from .cache import sources_hash
 from .registry import ForceKernel, Kernel
 from .steps import BODY_TORQUE
 
@@ -44,22 +45,10 @@ if (layout.STEP_TUPLE_SIZE, BODY_TORQUE) != (13, 13):
 
 _PACKAGE = Path(__file__).resolve().parent
 _F64 = np.dtype(np.float64)
-_SOURCES_HASH: str | None = None
 # Every kernel: cached, numpy's floating-point semantics (x/0 gives inf or nan, which the
 # finiteness check reports, as on the numpy path; Python's would raise ZeroDivisionError).
 _JIT = '@njit(cache=True, error_model="numpy")'
 _JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
-
-
-def sources_hash() -> str:
-    """Hash of every module of this package (and where it lives): a kernel edit is a new key."""
-    global _SOURCES_HASH
-    if _SOURCES_HASH is None:
-        h = hashlib.sha256(str(_PACKAGE).encode())
-        for path in sorted(_PACKAGE.glob("*.py")):
-            h.update(path.read_bytes())
-        _SOURCES_HASH = h.hexdigest()[:16]
-    return _SOURCES_HASH
 
 
 def cache_dir() -> Path:

@@ -1,0 +1,96 @@
+"""numba's disk cache, keyed by every source file of the simulator.
+
+numba stamps a cached function with its own file only. A cached caller keeps the machine code
+of the callees it inlined from other files (``contact_solve.solve`` calls
+``contact_starts.active_set_start``) and of the module constants it read
+(``contacts.solve.NEWTON_STEPS``) as they were when it compiled; after an edit, or an upgrade
+in place, the package would run stale code without a word. The locator here adds the hash of
+every ``rigid_env/sim`` source to the stamp of each function this package compiles (its kernels
+and the generated drivers), so any edit recompiles everything once. Paths and file names are
+numba's own (``__pycache__``, or ``NUMBA_CACHE_DIR``); only the stamp differs.
+
+numba ≥ 0.59 picks a function's locator from ``CacheImpl._locator_classes`` (or from
+``NUMBA_CACHE_LOCATOR_CLASSES`` when a user sets it, which then takes over). ``install`` puts
+this locator first; it declines every function that is not this package's, so other numba code
+keeps numba's locators.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+_SIM = Path(__file__).resolve().parents[1]
+_OWN_MODULES = ("rigid_env.", "rigid_env_driver_")  # the package, its generated drivers
+_HASH: str | None = None
+
+
+def sources_hash(root: Path = _SIM) -> str:
+    """Hash of every ``.py`` under ``root`` (the simulator) and of where it lives."""
+    global _HASH
+    if root == _SIM and _HASH is not None:
+        return _HASH
+    h = hashlib.sha256(str(root).encode())
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode())
+        h.update(path.read_bytes())
+    digest = h.hexdigest()[:16]
+    if root == _SIM:
+        _HASH = digest
+    return digest
+
+
+def install() -> bool:
+    """Put ``PackageLocator`` first in numba's locators; False if numba's internals differ (the
+    cache then works as numba's alone, with the stale-callee hazard the docstring describes)."""
+    try:
+        from numba.core import caching
+    except ImportError:
+        return False
+    impl = getattr(caching, "CacheImpl", None)
+    classes = getattr(impl, "_locator_classes", None)
+    if not isinstance(classes, list):
+        return False
+    locator = _locator_class(caching)
+    if not any(getattr(c, "rigid_env_locator", False) for c in classes):
+        classes.insert(0, locator)
+    return True
+
+
+def _locator_class(caching):
+    class PackageLocator(caching._CacheLocator):
+        """numba's own locator for the function, with the sources hash added to its stamp."""
+
+        rigid_env_locator = True
+
+        def __init__(self, inner):
+            self._inner = inner
+
+        def ensure_cache_path(self):
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return (self._inner.get_source_stamp(), sources_hash())
+
+        def get_disambiguator(self):
+            return self._inner.get_disambiguator()
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not getattr(py_func, "__module__", "").startswith(_OWN_MODULES):
+                return None
+            for base in caching.CacheImpl._locator_classes:
+                if base is cls:
+                    continue
+                inner = base.from_function(py_func, py_file)
+                if inner is not None:
+                    return cls(inner)
+            return None
+
+    return PackageLocator
+
+
+__all__ = ["install", "sources_hash"]
