@@ -36,6 +36,10 @@ def test_the_stamp_changes_with_any_simulator_source(tmp_path):
     shutil.copytree(SIM, copy, ignore=shutil.ignore_patterns("__pycache__"))
     before = cache.sources_hash(copy)
     assert cache.sources_hash(copy) == before
+    # A driver generated into the cache directory is no source: the stamp stays.
+    (copy / "compiled" / "__pycache__" / "drivers").mkdir(parents=True)
+    (copy / "compiled" / "__pycache__" / "drivers" / "rigid_env_driver_0.py").write_text("x = 1\n")
+    assert cache.sources_hash(copy) == before
     # A constant a kernel reads from another package (the disk step's Newton iterations).
     solve = copy / "contacts" / "solve.py"
     solve.write_text(solve.read_text() + "\nNEWTON_STEPS = 9\n")
@@ -54,3 +58,40 @@ def test_functions_outside_the_package_keep_numbas_locator(tmp_path, monkeypatch
         assert module.f(1) == 2
     finally:
         sys.modules.pop("outside_kernel", None)
+
+
+PROBE = """
+from rigid_env import sim
+scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 2.0), 0.01, backend="compiled")
+scene.step(scene.initial_state(angular_velocity=(0.1, 3.0, 0.1)))
+stats = scene._driver.module.step.stats
+print(len(stats.cache_hits), len(stats.cache_misses))
+"""
+
+
+def test_a_second_process_loads_the_compiled_step_from_the_cache(tmp_path):
+    """The stamp must be stable across processes: a stamp that moved with every compile (a
+    hash that took in the generated drivers, which live inside the package by default)
+    recompiles every run. The drivers go to a fresh directory inside the package, as by
+    default; numba's cache to an empty one, so the first run compiles."""
+    import os
+    import subprocess
+    import uuid
+
+    drivers = SIM / "compiled" / "__pycache__" / f"test-drivers-{uuid.uuid4().hex}"
+    env = {
+        **os.environ,
+        "RIGID_ENV_CACHE_DIR": str(drivers),
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+    }
+    try:
+        runs = [
+            subprocess.run(
+                [sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, check=True
+            ).stdout.split()
+            for _ in range(2)
+        ]
+    finally:
+        shutil.rmtree(drivers, ignore_errors=True)
+    assert runs[0] == ["0", "1"]  # compiled, then saved
+    assert runs[1] == ["1", "0"]  # loaded

@@ -26,12 +26,15 @@ _HASH: str | None = None
 
 
 def sources_hash(root: Path = _SIM) -> str:
-    """Hash of every ``.py`` under ``root`` (the simulator) and of where it lives."""
+    """Hash of every ``.py`` under ``root`` (the simulator) and of where it lives, the generated
+    drivers (in ``__pycache__``) excepted."""
     global _HASH
     if root == _SIM and _HASH is not None:
         return _HASH
     h = hashlib.sha256(str(root).encode())
     for path in sorted(root.rglob("*.py")):
+        if "__pycache__" in path.parts:  # the generated drivers live there
+            continue
         h.update(str(path.relative_to(root)).encode())
         h.update(path.read_bytes())
     digest = h.hexdigest()[:16]
