@@ -304,8 +304,10 @@ class Scene:
             arrays = self._arrays(state)
         shape = arrays[0].shape
         # Loads are checked for finiteness only if the step comes out non-finite (below).
-        torque = _load(torque, "torque", shape, check_finite=False)
-        force = _load(force, "force", shape, check_finite=False)
+        if torque is not None:
+            torque = _load(torque, "torque", shape, check_finite=False)
+        if force is not None:
+            force = _load(force, "force", shape, check_finite=False)
         if body_torque is not None:
             body_torque = _load(body_torque, "body_torque", shape, check_finite=False)
         if timer is not None:
@@ -335,9 +337,14 @@ class Scene:
             qshape = shape[:-1] + (4,)
             x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)
         # State(x, q, v, w) without the frozen dataclass's four object.__setattr__ calls
-        # (~0.4 µs of a ~6 µs batch-1 step); the same instance, fields set once.
+        # (~0.4 µs of a ~5 µs batch-1 step; item by item, ~0.2 µs cheaper than update(**)):
+        # the same instance, fields set once.
         new = _State_new(State)
-        new.__dict__.update(position=x, orientation=q, linear_velocity=v, angular_velocity=w)
+        fields = new.__dict__
+        fields["position"] = x
+        fields["orientation"] = q
+        fields["linear_velocity"] = v
+        fields["angular_velocity"] = w
         if timer is not None:
             timer.add("check", time.perf_counter() - mid)
             # The total by its own later read: the parts are back to back here, and a shared
