@@ -164,13 +164,16 @@ def generate(
         "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
         "    bad_orientation = 0",
         "    diverged = 0",
+        "    capped = 0",
         "    for e in range(size):",
         "        verdict = element(e, st, data, steps, total)",
         "        if verdict == 1:",
         "            bad_orientation += 1",
         "        elif verdict == 2:",
         "            diverged += 1",
-        "    return bad_orientation, diverged",
+        f"        if report[e, {layout.CAPPED}] > 0.0:",
+        "            capped += 1",
+        "    return bad_orientation, diverged, capped",
     ]
     return "\n".join(lines) + "\n"
 
@@ -229,8 +232,8 @@ class Driver:
     """The compiled step of one scene: ``driver(x, q, v, w, force, torque, body_torque,
     steps)`` → new arrays after ``steps`` steps.
 
-    Arrays are (N, n, ·) float64, C-contiguous; the loads (N, n, 3). Returns the new state
-    arrays and the number of elements whose result is not finite.
+    Arrays are (N, n, ·) float64; the loads (N, n, 3). Returns the new state arrays, the
+    report columns and the counts of ``__call__``.
     """
 
     def __init__(self, kernels, forces, threads: bool = False):
@@ -276,7 +279,8 @@ class Driver:
         """``steps`` steps from the state arrays (float64, any batch shape and memory layout)
         and the validated loads (None or broadcastable). Returns the new arrays as (N, n, ·),
         the report array (over several steps, its elementwise maximum over them), and the
-        counts of elements with a quaternion off unit length and with a non-finite result."""
+        counts of elements with a quaternion off unit length, with a non-finite result and
+        with a contact solve stopped at its cap (``layout.CAPPED``)."""
         shape = x0.shape
         last = self._last
         if last is None or last[0] != shape:
@@ -303,7 +307,7 @@ class Driver:
             bad = entry(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps)
         return x, q, v, w, report, bad
 
-    def _dispatch(self, args, steps) -> tuple[int, int]:
+    def _dispatch(self, args, steps) -> tuple[int, int, int]:
         """The step through numba's dispatcher (which compiles or loads it on the first call),
         or over threads; a serial driver then calls its compiled entry point directly."""
         if self.threads:
@@ -314,10 +318,10 @@ class Driver:
         self._entry = _entry_point(self.module.step)
         return bad
 
-    def _serial(self, args, steps) -> tuple[int, int]:
+    def _serial(self, args, steps) -> tuple[int, int, int]:
         return self.module.step(*args, self.data, self.slots, steps)
 
-    def _threaded(self, args, steps) -> tuple[int, int]:
+    def _threaded(self, args, steps) -> tuple[int, int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
         Elements are independent, so the bits are those of the serial loop."""
         size = args[0].shape[0]
@@ -328,7 +332,7 @@ class Driver:
         ]
         step, data, slots = self.module.step, self.data, self.slots
         counts = list(self.pool().map(lambda chunk: step(*chunk, data, slots, steps), chunks))
-        return sum(c[0] for c in counts), sum(c[1] for c in counts)
+        return tuple(sum(c[i] for c in counts) for i in range(3))
 
     def pool(self):
         if self._pool is None:
