@@ -45,14 +45,14 @@ def best_us(fn: Callable[[], object], block_s: float, repeats: int) -> float:
     return best * 1e6
 
 
-def _empty_like_kernel(args: tuple):
+def _empty_like_kernel(args: tuple) -> Callable[..., object]:
     """A compiled function of the step's signature that does nothing, compiled for ``args``."""
     from numba import njit
 
     from rigid_env.sim.compiled.driver import _entry_point
 
     @njit
-    def empty(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps):
+    def empty(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps):  # type: ignore[no-untyped-def]
         return 0, 0, 0
 
     empty(*args)
@@ -69,7 +69,7 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     start = speed._initial(scene, initial, 1)
     evolving = [start]
 
-    def bench_row():
+    def bench_row() -> None:
         evolving[0] = scene.step(evolving[0])
 
     out = {"bench row": best_us(bench_row, block_s, repeats)}

@@ -144,7 +144,8 @@ class Scene:
             steps = parts
         self.pipeline: tuple = (*self.forces, *steps)
         self.timer = timer
-        self.report = {}
+        self._report: dict | None = {}
+        self._report_columns: np.ndarray | None = None  # a compiled step's, while unread
         self._known_shapes: tuple = ((), ())
         self._driver = driver_for(self, self.backend)
         self.backend = "numpy" if self._driver is None else "compiled"
@@ -156,9 +157,10 @@ class Scene:
         step, which a caller that never reads it need not pay); a step whose contact solve
         stopped at its cap builds it at once, so its ``ContactSolverWarning`` comes with the
         step."""
-        if self._report is None:
-            self._report = self._driver.report(self._report_columns)
-        return self._report
+        report = self._report
+        if report is None:
+            report = self._report = self._driver.report(self._report_columns)
+        return report
 
     @report.setter
     def report(self, value: dict) -> None:
