@@ -52,7 +52,9 @@ def _empty_like_kernel(args: tuple) -> Callable[..., object]:
     from rigid_env.sim.compiled.driver import _entry_point
 
     @njit
-    def empty(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps):  # type: ignore[no-untyped-def]
+    def empty(  # type: ignore[no-untyped-def]
+        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps
+    ):
         return 0, 0, 0
 
     empty(*args)
