@@ -18,6 +18,7 @@ from rigid_env.sim.compiled import ground as compiled_ground
 from rigid_env.sim.compiled import layout
 from rigid_env.sim.contacts import GroundContacts
 from rigid_env.sim.rotation import random_quaternions
+from rigid_env.sim.scenes import landing_scene
 
 pytestmark = pytest.mark.skipif(
     not compiled_backend.numba_available(), reason="numba is not installed"
@@ -251,3 +252,63 @@ def test_lapack_the_compiled_kernels_call_is_a_core_dependency():
         return
     core = [r for r in metadata.requires("rigid-env") or [] if "extra ==" not in r]
     assert any(r.replace(" ", "").lower().startswith("scipy") for r in core), core
+
+
+def test_kernel_data_is_shared_only_between_equal_tuples():
+    """``share`` passes one copy of equal data tuples: the same nesting, dtypes, shapes and
+    bytes, so a kernel never sees another's values (-0.0 is not 0.0, int 1 is not float 1)."""
+    from rigid_env.sim.compiled.driver import share
+
+    a = (np.array([1.0, 0.0]), np.array([3], np.int64))
+    same = (np.array([1.0, 0.0]), np.array([3], np.int64))
+    signed = (np.array([1.0, -0.0]), np.array([3], np.int64))
+    ints = (np.array([1, 0]), np.array([3], np.int64))
+    nested = ((np.array([1.0, 0.0]),), np.array([3], np.int64))
+    unique, index = share((a, same, signed, ints, nested, a))
+    assert index == (0, 0, 1, 2, 3, 0)
+    assert unique[0] is a and unique[1] is signed and unique[2] is ints and unique[3] is nested
+
+
+def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
+    """The landing scene's contact kernels and integrator halves take equal data: the driver
+    passes each distinct tuple once, and every kernel's index points at data equal to its own."""
+    from rigid_env.sim.compiled.driver import _same
+
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
+    scene, _ = landing_scene(dt=0.01)
+    drv = scene._driver
+    assert len(drv.data) < len(drv.kernels)
+    calls = [
+        line.strip()
+        for line in drv.source.split("def element")[1].splitlines()
+        if "(e, st, data[" in line
+    ]
+    assert len(calls) == len(drv.kernels)
+    for kernel, call in zip(drv.kernels, calls, strict=True):
+        j = int(call.split("data[")[1].split("]")[0])
+        own = (kernel.data, tuple(f.data for f in drv.forces)) if kernel.template else kernel.data
+        assert _same(drv.data[j], own)
+
+
+@pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
+def test_a_report_read_late_is_the_last_steps_report(monkeypatch):
+    """The compiled report is built when read, from the last step's columns: a scene read after
+    every step and one read only now and then agree at every read, and a read twice is the
+    same dict."""
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
+    eager, initial = landing_scene(dt=0.01)
+    lazy, _ = landing_scene(dt=0.01)
+    assert eager.backend == lazy.backend == "compiled"
+    a = b = initial(batch_shape=(3,), rng=np.random.default_rng(2))
+    seen = set()
+    for k in range(90):
+        a, b = eager.step(a), lazy.step(b)
+        want = eager.report["contacts"]
+        if k % 7 == 3:
+            got = lazy.report["contacts"]
+            assert lazy.report is lazy.report
+            assert vars(got).keys() == vars(want).keys()
+            for key, value in vars(want).items():
+                assert np.array_equal(getattr(got, key), value), key
+            seen.add((want.engaged, want.impacts > 0))
+    assert (0, False) in seen and any(engaged for engaged, _ in seen)  # before and on the ground

@@ -89,12 +89,20 @@ add the module to ``backend.KERNEL_MODULES``.
 
 **The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
 source of a small module, ``element(e, st, data, steps, total)`` = ``steps.begin`` (working
-state, zeroed scratch), each kernel in stage order with ``data[i]``, then ``steps.finite``,
+state, zeroed scratch), each kernel in stage order with its data (equal data tuples are passed
+once: ``driver.share``), then ``steps.finite``,
 ``steps`` times (``Scene.step(..., steps=k)``; between two, ``steps.carry`` makes the result the
 next start, zeroes the contact slots and folds the report row into ``total``, so a report
 column over k steps is its maximum over them: write columns for which that is the right
-summary, as flags, counts per step and largest values are); ``step(st, data, steps, total)``
-loops over the batch (``nogil``; with ``backend="compiled-threads"`` the driver runs it on one
+summary, as flags, counts per step and largest values are); ``step(x0, q0, v0, w0, x, q, v, w,
+force, torque, body, report, data, slots, steps)`` allocates the scratch (displacement, contact
+slots, the start copies of several steps), builds ``st`` and loops over the batch, counting the
+elements with a bad quaternion, a non-finite result and a capped solve (the scene builds its
+report dict from the columns when read, at once when a solve was capped). ``element``,
+``steps.begin``, ``finite``, ``carry`` and the integrator stage templates are inlined into
+their caller: a call passes each array of ``st`` field by field, ~30-100 ns per call per
+element. ``step`` runs ``nogil``
+(with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
 its parallel loop bodies accept no tuples of arrays). It
 writes the module to a cache directory under a name hashed from that source and the kernel

@@ -16,7 +16,7 @@ from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, STEP_TUPLE_SIZE, V0, W0, 
 BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def begin(e, st, tolerance):
     """Working state = the state passed in with |q| renormalised, as ``StepContext`` (the
     scene's ``_norm2`` order: x² + y² + z² + w²), displacement zeroed (the driver hands the
@@ -41,7 +41,7 @@ def begin(e, st, tolerance):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def finite(e, st):
     """Every entry of the element's result is finite (elementwise: a sum could overflow).
     Written out flat: a helper taking the arrays costs ~100 ns per element in calls."""
@@ -58,7 +58,7 @@ def finite(e, st):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def carry(e, st, total):
     """Between two steps of one call: the result becomes the state passed in (the start slots
     are the driver's own copies then), the contact slots are zeroed and the report row is
