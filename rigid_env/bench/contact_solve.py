@@ -170,7 +170,7 @@ def rollout_boxlanding(episodes: int, seed: int = 0, backend: str = "auto") -> d
                     if report.engaged:
                         sweeps.append(report.iterations)
                         capped.append(report.capped > 0)
-                        newton.append(getattr(report, "newton_steps", 0))
+                        newton.append(report.newton)
                 _, _, terminated, truncated, _ = env.step(action)
                 done = terminated or truncated
     env.close()
