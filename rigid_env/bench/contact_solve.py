@@ -18,6 +18,7 @@ Newton steps (``python -m rigid_env.bench.contact_solve --rollout boxlanding --e
 from __future__ import annotations
 
 import argparse
+import time
 import warnings
 
 import numpy as np
@@ -133,11 +134,17 @@ def measure(
     return out
 
 
-def rollout_boxlanding(episodes: int, seed: int = 0, backend: str = "auto") -> dict:
+def rollout_boxlanding(
+    episodes: int,
+    seed: int = 0,
+    backend: str = "auto",
+    settings: sim.SolverSettings | None = None,
+) -> dict:
     """Per-physics-step contact statistics of ``episodes`` BoxLanding episodes under random
     actions (``seed`` seeds the env and its action space). The env steps as usual; before each
     action a copy of its scene (``backend``) steps the same state with the same body torque one
-    physics step at a time, ``frame_skip`` times, and its reports are collected."""
+    physics step at a time, ``frame_skip`` times, and its reports are collected (and the wall
+    time of those steps, ``settings`` the scene's solver settings)."""
     import gymnasium as gym
 
     import rigid_env.envs  # noqa: F401  (registers the envs)
@@ -152,9 +159,11 @@ def rollout_boxlanding(episodes: int, seed: int = 0, backend: str = "auto") -> d
         gravity=model.gravity,
         ground=model.ground,
         backend=backend,
+        contact_solver=settings,
     )
     env.action_space.seed(seed)
     sweeps, capped, newton = [], [], []
+    seconds, steps = 0.0, 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sim.ContactSolverWarning)
         for episode in range(episodes):
@@ -165,7 +174,10 @@ def rollout_boxlanding(episodes: int, seed: int = 0, backend: str = "auto") -> d
                 torque = (action * task.max_torque)[None, None, :]
                 state = task.state
                 for _ in range(task.frame_skip):
+                    began = time.perf_counter()
                     state = scene.step(state, body_torque=torque)
+                    seconds += time.perf_counter() - began
+                    steps += 1
                     report = scene.report["contacts"]
                     if report.engaged:
                         sweeps.append(report.iterations)
@@ -187,6 +199,7 @@ def rollout_boxlanding(episodes: int, seed: int = 0, backend: str = "auto") -> d
         "capped_sweep_share": float(np.sum(sweeps_a[capped_a]) / total) if total else 0.0,
         "newton_steps": int(np.sum(newton)),
         "newton_solves": int(np.count_nonzero(newton)),
+        "step_us": 1e6 * seconds / max(steps, 1),
     }
 
 
@@ -218,16 +231,25 @@ def main(argv: list[str] | None = None) -> None:
         choices=["auto", "numpy", "compiled"],
         help="rollout scene backend, default auto",
     )
+    parser.add_argument(
+        "--newton-after", type=int, default=None, help="SolverSettings.newton_after (rollout)"
+    )
+    parser.add_argument(
+        "--newton-steps", type=int, default=None, help="SolverSettings.newton_steps (rollout)"
+    )
     args = parser.parse_args(argv)
     if args.rollout:
-        r = rollout_boxlanding(args.episodes, args.seed, args.backend)
+        chosen = {"newton_after": args.newton_after, "newton_steps": args.newton_steps}
+        settings = sim.SolverSettings(**{k: v for k, v in chosen.items() if v is not None})
+        r = rollout_boxlanding(args.episodes, args.seed, args.backend, settings)
         print(
             f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, backend {args.backend}: "
             f"{r['contact_steps']} contact steps, capped {100 * r['capped_share']:.2f} %, "
             f"sweeps mean {r['mean_sweeps']:.1f} median {r['median_sweeps']:.0f} "
             f"max {r['max_sweeps']}, share of sweeps in capped steps "
             f"{100 * r['capped_sweep_share']:.1f} %, Newton steps {r['newton_steps']} "
-            f"in {r['newton_solves']} solves"
+            f"in {r['newton_solves']} solves; newton_after {settings.newton_after}, "
+            f"newton_steps {settings.newton_steps}; {r['step_us']:.1f} µs per physics step"
         )
         return
     # Sweeps: the most any element of the batch needed in a step (``ContactReport.iterations``),

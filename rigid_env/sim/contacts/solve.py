@@ -43,7 +43,7 @@ MAX_ITERATIONS = 500
 TOLERANCE = 1e-12
 MAX_IMPACTS = 32
 STARTS = ("active_set", "particle")
-NEWTON_AFTER = 10  # sweeps per round between Newton polishes (measured: 10 beats 30)
+NEWTON_AFTER = 30  # sweeps per round between Newton polishes (measured in the BoxLanding rollout)
 NEWTON_STEPS = 50  # Newton steps at most per solve
 
 
