@@ -1,7 +1,8 @@
 """The Newton polish of one element's contact solve and the rounds that call it, mirroring
 ``contacts.newton`` and ``contacts.solve.converge`` (see there for the Alart–Curnier function,
-its generalised Jacobian, the line search and the sources). The least-squares step is numba's
-``np.linalg.pinv`` (LAPACK's SVD), as numpy's; the two backends agree to rounding, not bit for bit.
+its generalised Jacobian, the line search and the sources). The regularised normal equations
+are solved by a hand-written Cholesky factorisation (numpy: LAPACK's LU); the two backends
+agree to rounding, not bit for bit.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RCOND
+from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RIDGE
 from .contact_gauss_seidel import gauss_seidel
 
 
@@ -87,6 +88,50 @@ def jacobian(a, mu, zn, zt, rho, g):
 
 
 @njit(cache=True, error_model="numpy")
+def least_squares_step(g, f, normal, step):
+    """Δ = −(GᵀG + δ I)⁻¹ GᵀF into ``step`` (``newton.RIDGE``), by Cholesky (Golub & Van Loan,
+    "Matrix Computations", 4th ed. 2013, Algorithm 4.2.1); ``normal`` (n, n) scratch."""
+    n = f.shape[0]
+    peak = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(n):
+                acc += g[k, i] * g[k, j]
+            normal[i, j] = acc
+        peak = max(peak, normal[i, i])
+    ridge = RIDGE * peak
+    for i in range(n):
+        normal[i, i] += ridge
+        acc = 0.0
+        for k in range(n):
+            acc += g[k, i] * f[k]
+        step[i] = -acc
+    # L Lᵀ in the lower triangle of ``normal``.
+    for j in range(n):
+        d = normal[j, j]
+        for k in range(j):
+            d -= normal[j, k] * normal[j, k]
+        d = math.sqrt(d) if d > 0 else 1e-300
+        normal[j, j] = d
+        for i in range(j + 1, n):
+            acc = normal[i, j]
+            for k in range(j):
+                acc -= normal[i, k] * normal[j, k]
+            normal[i, j] = acc / d
+    for i in range(n):  # L y = rhs
+        acc = step[i]
+        for k in range(i):
+            acc -= normal[i, k] * step[k]
+        step[i] = acc / normal[i, i]
+    for i in range(n - 1, -1, -1):  # Lᵀ Δ = y
+        acc = step[i]
+        for k in range(i + 1, n):
+            acc -= normal[k, i] * step[k]
+        step[i] = acc / normal[i, i]
+
+
+@njit(cache=True, error_model="numpy")
 def newton(a, free, target, mu, lam, extra, budget, tolerance):
     """``newton.newton`` for one element: at most ``budget`` steps from ``lam`` (3C,),
     updated in place. Returns the steps taken."""
@@ -109,6 +154,7 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
     zt2 = np.empty((c, 2))
     rho2 = np.empty(c)
     g = np.empty((size, size))
+    normal = np.empty((size, size))
     step = np.empty(size)
     trial = np.empty(size)
     phi = residual(a, free, target, mu, extra, lam, f, zn, zt, rho)
@@ -122,12 +168,7 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
         if worst <= goal:
             break
         jacobian(a, mu, zn, zt, rho, g)
-        inv = np.linalg.pinv(g, rcond=RCOND)
-        for i in range(size):
-            acc = 0.0
-            for k in range(size):
-                acc += inv[i, k] * f[k]
-            step[i] = -acc
+        least_squares_step(g, f, normal, step)
         alpha = 1.0
         accepted = False
         for _ in range(HALVINGS):
