@@ -7,11 +7,18 @@ a box sliding diagonally). Run: ``python -m rigid_env.bench.contact_solve`` (``-
 step, the number of steps, the landing batch, the starts and a scene filter; e.g. the landing
 scene at the speed bench's Δt = 0.01 s: ``--dt 0.01 --steps 100 --landing-batch 64 --only
 landing``).
+
+``--rollout boxlanding --episodes N`` instead steps ``RigidEnv/BoxLanding-v0`` (one env) under
+seeded random actions and, beside it, the env's own scene one physics step at a time from the
+env's state, so every contact step's solve is seen alone: it prints the contact steps, the share
+capped, the mean / median / max sweeps, the share of all sweeps spent in capped steps and the
+Newton steps (``python -m rigid_env.bench.contact_solve --rollout boxlanding --episodes 20``).
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 import warnings
 
 import numpy as np
@@ -127,6 +134,76 @@ def measure(
     return out
 
 
+def rollout_boxlanding(
+    episodes: int,
+    seed: int = 0,
+    backend: str = "auto",
+    settings: sim.SolverSettings | None = None,
+) -> dict:
+    """Per-physics-step contact statistics of ``episodes`` BoxLanding episodes under random
+    actions (``seed`` seeds the env and its action space). The env steps as usual; before each
+    action a copy of its scene (``backend``) steps the same state with the same body torque one
+    physics step at a time, ``frame_skip`` times, and its reports are collected (and the wall
+    time of those steps, ``settings`` the scene's solver settings)."""
+    import gymnasium as gym
+
+    import rigid_env.envs  # noqa: F401  (registers the envs)
+
+    env = gym.make("RigidEnv/BoxLanding-v0")
+    task = env.unwrapped.task
+    model = task.scene.model
+    scene = sim.Scene(
+        task.body,
+        task.scene.dt,
+        integrator=task.config.integrator,
+        gravity=model.gravity,
+        ground=model.ground,
+        backend=backend,
+        contact_solver=settings,
+    )
+    env.action_space.seed(seed)
+    scene.step(task.state)  # compiles (or loads) the kernels outside the timed steps
+    sweeps, capped, newton = [], [], []
+    seconds, steps = 0.0, 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sim.ContactSolverWarning)
+        for episode in range(episodes):
+            env.reset(seed=seed + episode)
+            done = False
+            while not done:
+                action = env.action_space.sample()
+                torque = (action * task.max_torque)[None, None, :]
+                state = task.state
+                for _ in range(task.frame_skip):
+                    began = time.perf_counter()
+                    state = scene.step(state, body_torque=torque)
+                    seconds += time.perf_counter() - began
+                    steps += 1
+                    report = scene.report["contacts"]
+                    if report.engaged:
+                        sweeps.append(report.iterations)
+                        capped.append(report.capped > 0)
+                        newton.append(report.newton)
+                _, _, terminated, truncated, _ = env.step(action)
+                done = terminated or truncated
+    env.close()
+    sweeps_a = np.array(sweeps, dtype=float)
+    capped_a = np.array(capped, dtype=bool)
+    total = float(np.sum(sweeps_a))
+    return {
+        "episodes": episodes,
+        "contact_steps": len(sweeps_a),
+        "capped_share": float(np.mean(capped_a)) if len(capped_a) else 0.0,
+        "mean_sweeps": float(np.mean(sweeps_a)) if len(sweeps_a) else 0.0,
+        "median_sweeps": float(np.median(sweeps_a)) if len(sweeps_a) else 0.0,
+        "max_sweeps": int(np.max(sweeps_a)) if len(sweeps_a) else 0,
+        "capped_sweep_share": float(np.sum(sweeps_a[capped_a]) / total) if total else 0.0,
+        "newton_steps": int(np.sum(newton)),
+        "newton_solves": int(np.count_nonzero(newton)),
+        "step_us": 1e6 * seconds / max(steps, 1),
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dt", type=float, default=DT, help="time step (s), default 1/240")
@@ -142,7 +219,40 @@ def main(argv: list[str] | None = None) -> None:
         help="SolverSettings.start values to measure, default both",
     )
     parser.add_argument("--only", default="", help="measure the scenes whose name contains this")
+    parser.add_argument(
+        "--rollout",
+        choices=["boxlanding"],
+        help="instead of the scenes: per-step statistics of RigidEnv/BoxLanding-v0 rollouts",
+    )
+    parser.add_argument("--episodes", type=int, default=20, help="rollout episodes, default 20")
+    parser.add_argument("--seed", type=int, default=0, help="rollout seed, default 0")
+    parser.add_argument(
+        "--backend",
+        default="auto",
+        choices=["auto", "numpy", "compiled"],
+        help="rollout scene backend, default auto",
+    )
+    parser.add_argument(
+        "--newton-after", type=int, default=None, help="SolverSettings.newton_after (rollout)"
+    )
+    parser.add_argument(
+        "--newton-steps", type=int, default=None, help="SolverSettings.newton_steps (rollout)"
+    )
     args = parser.parse_args(argv)
+    if args.rollout:
+        chosen = {"newton_after": args.newton_after, "newton_steps": args.newton_steps}
+        settings = sim.SolverSettings(**{k: v for k, v in chosen.items() if v is not None})
+        r = rollout_boxlanding(args.episodes, args.seed, args.backend, settings)
+        print(
+            f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, backend {args.backend}: "
+            f"{r['contact_steps']} contact steps, capped {100 * r['capped_share']:.2f} %, "
+            f"sweeps mean {r['mean_sweeps']:.1f} median {r['median_sweeps']:.0f} "
+            f"max {r['max_sweeps']}, share of sweeps in capped steps "
+            f"{100 * r['capped_sweep_share']:.1f} %, Newton steps {r['newton_steps']} "
+            f"in {r['newton_solves']} solves; newton_after {settings.newton_after}, "
+            f"newton_steps {settings.newton_steps}; {r['step_us']:.1f} µs per physics step"
+        )
+        return
     # Sweeps: the most any element of the batch needed in a step (``ContactReport.iterations``),
     # over the steps with a contact; capped: steps with a capped element, and the share of
     # element-steps with a contact whose solve was capped.

@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from ..contacts.solve import NEWTON_STEPS
+from ..contacts.solve import DISK_NEWTON_STEPS
 
 WORK_PER_CONTACT = 9  # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep
 
@@ -53,7 +53,7 @@ def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
     p20 = p0 * p0
     p21 = p1 * p1
     safe_cap = cap if cap > 0 else 1.0
-    for _ in range(NEWTON_STEPS):
+    for _ in range(DISK_NEWTON_STEPS):
         d0 = e0 + gamma
         d1 = e1 + gamma
         s0 = p20 / (d0 * d0)

@@ -2,8 +2,9 @@
 (ground contacts), and the step's ``ContactReport`` from the report columns.
 
 Order as numpy's: free contact velocities and targets (the gaps where the impacts left them,
-over the time left), the particle start probed by one sweep, then Gauss–Seidel from the
-particle start or from the active-set start (``SolverSettings.start``), and an unconverged
+over the time left), the particle start probed by one sweep, then rounds of Gauss–Seidel with Newton polishes
+(``contact_newton.converge``) from the particle start or from the active-set start
+(``SolverSettings.start``), and an unconverged
 impulse cut back so it adds no kinetic energy (``dissipative``).
 
 numba's disk cache checks only a kernel's own file, so a cached ``solve`` keeps the code of the
@@ -22,6 +23,8 @@ from .contact_assembly import (
     F_TOLERANCE,
     I_K,
     I_MAX_ITERATIONS,
+    I_NEWTON_AFTER,
+    I_NEWTON_STEPS,
     I_PARTICLE,
     add_impulses,
     contact_data,
@@ -33,6 +36,7 @@ from .contact_assembly import (
     unpack,
 )
 from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
+from .contact_newton import converge
 from .contact_starts import active_set_start, particle_start
 from .layout import (
     CAPPED,
@@ -43,6 +47,7 @@ from .layout import (
     IMPULSE,
     ITERATIONS,
     JT,
+    NEWTON,
     PATH_GAP,
     REPORT,
     TOUCHED,
@@ -120,22 +125,29 @@ def solve(e, st, d):
     particle_start(short, mass, shaped, k, lam, 3)
     sweeps, converged = gauss_seidel(a, free, target, mu, lam, extra, 3, 1, tolerance, work)
     max_iterations = ints[I_MAX_ITERATIONS]
-    if not converged and ints[I_PARTICLE] != 0:
-        more, converged = gauss_seidel(
-            a, free, target, mu, lam, extra, 3, max_iterations, tolerance, work
-        )
-        sweeps += more
-    elif not converged:
-        peak = 0.0
-        for i in range(c):
-            peak = max(peak, max(short[i], 0.0))
-        reach = dt * peak
-        reachable = np.empty(c, np.bool_)
-        for i in range(c):
-            reachable[i] = short[i] > 0 or cs[i, PATH_GAP] <= reach
-        active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
-        more, converged = gauss_seidel(
-            a, free, target, mu, lam, extra, 3, max_iterations, tolerance, work
+    steps = 0
+    if not converged:
+        if ints[I_PARTICLE] == 0:
+            peak = 0.0
+            for i in range(c):
+                peak = max(peak, max(short[i], 0.0))
+            reach = dt * peak
+            reachable = np.empty(c, np.bool_)
+            for i in range(c):
+                reachable[i] = short[i] > 0 or cs[i, PATH_GAP] <= reach
+            active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
+        more, converged, steps = converge(
+            a,
+            free,
+            target,
+            mu,
+            lam,
+            extra,
+            max_iterations,
+            tolerance,
+            ints[I_NEWTON_AFTER],
+            ints[I_NEWTON_STEPS],
+            work,
         )
         sweeps += more
     if not converged:
@@ -152,6 +164,7 @@ def solve(e, st, d):
                 touched = True
     report[e, TOUCHED] = 1.0 if touched else 0.0
     report[e, ITERATIONS] = sweeps
+    report[e, NEWTON] = steps
     if not converged:
         report[e, CAPPED] = 1.0
 
@@ -164,23 +177,26 @@ def report_of(tolerance: float):
         if len(columns) == 1:  # batch 1: Python floats, cheaper than five reductions
             row = columns[0].tolist()
             engaged, iterations, impacts = int(row[ENGAGED] > 0), row[ITERATIONS], row[IMPACTS]
+            newton = row[NEWTON]
             capped, unpaid = int(row[CAPPED] > 0), row[UNPAID_ENERGY]
             touched = np.array([row[TOUCHED] > 0])
         else:
             engaged = int(np.count_nonzero(columns[:, ENGAGED]))
             peak = columns.max(axis=0)
             iterations, impacts, unpaid = peak[ITERATIONS], peak[IMPACTS], peak[UNPAID_ENERGY]
+            newton = peak[NEWTON]
             capped = int(np.count_nonzero(columns[:, CAPPED]))
             touched = columns[:, TOUCHED] > 0
-        # ContactReport(...) without the frozen dataclass's seven object.__setattr__ calls
+        # ContactReport(...) without the frozen dataclass's eight object.__setattr__ calls
         # (~1.5 µs of a ~10 µs batch-1 step); the same instance, fields set once.
         out = object.__new__(ContactReport)
         if engaged == 0:
-            iterations = impacts = unpaid = 0.0
+            iterations = impacts = unpaid = newton = 0.0
         out.__dict__.update(
             engaged=engaged,
             iterations=int(iterations),
             impacts=int(impacts),
+            newton=int(newton),
             capped=capped,
             tolerance=tolerance,
             unpaid_energy=float(unpaid),

@@ -34,4 +34,5 @@ CAPPED = 3  # 1.0 if its solve stopped at a cap instead of converging
 UNPAID_ENERGY = 4  # energy excess (J) the guard could not remove
 TOUCHED = 5  # 1.0 if a contact carried an impulse this step
 ELAPSED = 6  # scratch, not reported: time into the step of the last impact (``Path.elapsed``)
+NEWTON = 7  # Newton steps of its solve's polish
 REPORT_WIDTH = 8

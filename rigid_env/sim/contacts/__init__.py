@@ -3,7 +3,7 @@
 One idea per module: ``ground``, ``pairs`` and ``box_box`` detect; ``assembly`` builds the rows
 and effective masses; ``restitution`` resolves impacts in time order; ``solve`` is the
 Gauss–Seidel solve to a stated tolerance (:class:`SolverSettings`), ``warm_start`` its
-starting impulses; ``energy`` keeps the step from gaining energy; ``stages`` wires them into
+starting impulses, ``newton`` its semi-smooth Newton polish for the slow cases; ``energy`` keeps the step from gaining energy; ``stages`` wires them into
 the pipeline and reports (:class:`ContactReport` in ``scene.report["contacts"]``).
 
 ``build(model, dt, settings)`` returns the contact stages of a model as two tuples: those that

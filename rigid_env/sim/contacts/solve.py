@@ -17,6 +17,10 @@ the friction away from the sliding direction and turn a box sliding diagonally).
 product of convex sets, so the iteration converges (Jourdan, Alart & Jean, 1998 for the
 frictional case with fixed cone radii).
 
+Newton polish (``converge``): an element still unconverged after a round of ``newton_after``
+sweeps is handed to a semi-smooth Newton method on the Alart–Curnier function (``newton``),
+and the next round of sweeps goes on from its answer (one sweep, when Newton found the root).
+
 Stopping: a batch element has converged when a whole sweep changes no contact velocity (A Δλ
 over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact velocity or target of that
 element). Converged elements drop out; an element that reaches ``max_iterations`` is reported
@@ -32,12 +36,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .assembly import scaled_velocity
+from .newton import newton
 from .warm_start import active_set_start, particle_start
 
 MAX_ITERATIONS = 500
 TOLERANCE = 1e-12
 MAX_IMPACTS = 32
 STARTS = ("active_set", "particle")
+NEWTON_AFTER = 30  # sweeps per round between Newton polishes (measured in the BoxLanding rollout)
+NEWTON_STEPS = 50  # Newton steps at most per solve
 
 
 @dataclass(frozen=True)
@@ -60,22 +67,34 @@ class SolverSettings:
         for resting and sticking contacts; ``"particle"``: always from the particle start
         (Gauss–Seidel alone; slower to converge on an incline or a resting polyhedron, see
         ``python -m rigid_env.bench.contact_solve``).
+    newton_after : Gauss–Seidel sweeps (≥ 1) per round: a solve not converged after a round
+        is polished by semi-smooth Newton steps (``contacts.newton``) and the next round
+        goes on from Newton's answer, up to ``max_iterations`` sweeps in all.
+    newton_steps : Newton steps at most per solve, over all rounds (≥ 0; 0: Gauss–Seidel
+        alone).
     """
 
     max_iterations: int = MAX_ITERATIONS
     tolerance: float = TOLERANCE
     max_impacts: int = MAX_IMPACTS
     start: str = "active_set"
+    newton_after: int = NEWTON_AFTER
+    newton_steps: int = NEWTON_STEPS
 
     def __post_init__(self):
-        for name in ("max_iterations", "max_impacts"):
+        for name, low in (
+            ("max_iterations", 1),
+            ("max_impacts", 1),
+            ("newton_after", 1),
+            ("newton_steps", 0),
+        ):
             value = getattr(self, name)
             try:
                 as_int = operator.index(value)
             except TypeError:
-                raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}") from None
-            if isinstance(value, bool) or as_int < 1:
-                raise ValueError(f"{name} must be an integer ≥ 1, got {value!r}")
+                raise ValueError(f"{name} must be an integer ≥ {low}, got {value!r}") from None
+            if isinstance(value, bool) or as_int < low:
+                raise ValueError(f"{name} must be an integer ≥ {low}, got {value!r}")
             object.__setattr__(self, name, int(as_int))
         try:
             tol = float(self.tolerance)
@@ -160,7 +179,7 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
     return lam, sweeps, converged
 
 
-NEWTON_STEPS = 8  # the secular equation's Newton iteration converges quadratically from γ = 0
+DISK_NEWTON_STEPS = 8  # the secular equation's Newton iteration converges quadratically from γ = 0
 
 
 def _disk_step(att, eig, q, lt, vt, cap):
@@ -185,7 +204,7 @@ def _disk_step(att, eig, q, lt, vt, cap):
     safe_cap = np.where(cap > 0, cap, 1.0)
     p2 = np.where(radial[:, None], 0.0, p2)
     done = np.zeros(len(p), bool)
-    for _ in range(NEWTON_STEPS):
+    for _ in range(DISK_NEWTON_STEPS):
         d = eig + gamma[:, None]
         q2 = p2 / (d * d)
         f = q2[:, 0] + q2[:, 1]
@@ -208,9 +227,51 @@ def _disk_step(att, eig, q, lt, vt, cap):
     return np.einsum("nij,nj->ni", q, l_local)
 
 
+def converge(delassus, free, target, mu, lam, settings, extra):
+    """Gauss–Seidel in rounds of ``newton_after`` sweeps, each unconverged element polished by
+    Newton steps between rounds (``newton_steps`` in all per element), until it converges or
+    has used ``max_iterations`` sweeps (arguments as :func:`gauss_seidel`, r = 3). A Newton
+    polish that stalls (a local minimum of |F|² where the Jacobian is singular) is left by the
+    next round of sweeps, from where Newton starts again. Rounds of sweeps from the same λ are
+    the same sweeps as one run, so ``newton_steps`` = 0 is plain Gauss–Seidel. Returns
+    ``(lam, sweeps, converged, newton_steps)``."""
+    size = len(free)
+    lam = np.array(lam, dtype=float)
+    sweeps = np.zeros(size, int)
+    steps = np.zeros(size, int)
+    converged = np.zeros(size, bool)
+    idx = np.arange(size)
+    used = 0  # every unconverged element has used the same sweeps
+    while len(idx) and used < settings.max_iterations:
+        chunk = min(settings.newton_after, settings.max_iterations - used)
+        rounds = SolverSettings(chunk, settings.tolerance)
+        lam[idx], more, done = gauss_seidel(
+            delassus[idx], free[idx], target[idx], mu, lam[idx], rounds, extra[idx]
+        )
+        sweeps[idx] += more
+        converged[idx] = done
+        used += chunk
+        idx = idx[~done]
+        budget = settings.newton_steps - steps[idx]
+        go = idx[budget > 0]
+        if len(go) and used < settings.max_iterations:
+            lam[go], taken = newton(
+                delassus[go],
+                free[go],
+                target[go],
+                mu,
+                lam[go],
+                extra[go],
+                budget[budget > 0],
+                settings.tolerance,
+            )
+            steps[go] += taken
+    return lam, sweeps, converged, steps
+
+
 def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=None):
     """The step's inelastic solve for the engaged elements: velocities u (N, n, 6) after it,
-    sweeps (N,) and converged (N,). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
+    sweeps (N,), converged (N,) and Newton steps (N,). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
     contact: the body may close the gap this step, no more — no tunnelling; Catto, "Contact
     Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
     impulse of this step's impacts, which friction may also use; ``gap`` (N, C) and
@@ -228,30 +289,22 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     lam, sweeps, converged = gauss_seidel(
         rows.delassus, free, target, layout.mu, lam, probe, extra=impulse
     )
-    if not converged.all() and settings.start == "particle":
+    steps = np.zeros(len(u), int)
+    if not converged.all():
         rest = np.flatnonzero(~converged)
-        lam[rest], more, converged[rest] = gauss_seidel(
-            rows.delassus[rest],
-            free[rest],
-            target[rest],
-            layout.mu,
-            lam[rest],
-            settings,
-            impulse[rest],
-        )
-        sweeps[rest] += more
-    elif not converged.all():
-        rest = np.flatnonzero(~converged)
-        sub = rows.take(rest)
-        # Contacts that can carry load: the violated ones and those the step's largest
-        # velocity correction could close (resting contacts whose v_n is rounding noise).
-        reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
-        reachable = (short[rest] > 0) | (gap[rest] <= reach)
-        start = active_set_start(
-            layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
-        )
-        lam[rest], more, converged[rest] = gauss_seidel(
-            sub.delassus, free[rest], target[rest], layout.mu, start, settings, impulse[rest]
+        if settings.start == "particle":
+            start = lam[rest]
+        else:
+            sub = rows.take(rest)
+            # Contacts that can carry load: the violated ones and those the step's largest
+            # velocity correction could close (resting contacts whose v_n is rounding noise).
+            reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
+            reachable = (short[rest] > 0) | (gap[rest] <= reach)
+            start = active_set_start(
+                layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
+            )
+        lam[rest], more, converged[rest], steps[rest] = converge(
+            rows.delassus[rest], free[rest], target[rest], layout.mu, start, settings, impulse[rest]
         )
         sweeps[rest] += more
     if not converged.all():
@@ -260,7 +313,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
         z = scaled_velocity(layout, u[bad], sub.scale)[..., 0]
         dz = (lam[bad].reshape(len(bad), 1, -1) @ sub.jt)[:, 0]
         lam[bad], _ = dissipative(lam[bad], dz, z)
-    return u + rows.velocity_change(lam, layout), sweeps, converged
+    return u + rows.velocity_change(lam, layout), sweeps, converged, steps
 
 
 def dissipative(lam, dz, z):
@@ -281,4 +334,4 @@ def dissipative(lam, dz, z):
     return lam * s.reshape(shape), dz * s[:, None]
 
 
-__all__ = ["SolverSettings", "dissipative", "gauss_seidel", "solve_inelastic"]
+__all__ = ["SolverSettings", "converge", "dissipative", "gauss_seidel", "solve_inelastic"]

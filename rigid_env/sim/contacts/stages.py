@@ -49,7 +49,9 @@ class ContactReport:
     """What the contact stages did in one step (``scene.report["contacts"]``).
 
     ``engaged``: batch elements with a contact within reach (the others skip the solve);
-    ``iterations``: the most Gauss–Seidel sweeps any element needed; ``impacts``: the most
+    ``iterations``: the most Gauss–Seidel sweeps any element needed; ``newton``: the most
+    Newton steps of the solve's polish any element took (``SolverSettings.newton_after``);
+    ``impacts``: the most
     impact events of any element; ``capped``: elements whose solve stopped at
     ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
     ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
@@ -63,6 +65,7 @@ class ContactReport:
     engaged: int = 0
     iterations: int = 0
     impacts: int = 0
+    newton: int = 0
     capped: int = 0
     tolerance: float = 0.0
     unpaid_energy: float = 0.0
@@ -198,7 +201,7 @@ class SolveContacts:
             if np.any(path.elapsed > 0):
                 rows = rows.moved(self.layout, u, path.translation)
         u_in = u
-        u, sweeps, converged = solve_inelastic(
+        u, sweeps, converged, newton_steps = solve_inelastic(
             self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining
         )
         _write(ctx, idx, u)
@@ -209,6 +212,7 @@ class SolveContacts:
         report = ContactReport(
             engaged=len(idx),
             iterations=int(sweeps.max()),
+            newton=int(newton_steps.max()),
             impacts=0 if events is None else int(events.max()),
             capped=int(np.sum(capped)),
             tolerance=settings.tolerance,

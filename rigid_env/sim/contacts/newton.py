@@ -1,0 +1,153 @@
+"""Semi-smooth Newton polish of the contact problem (``solve``'s module docstring), batched.
+
+Gauss–Seidel crawls on a few cases (several contacts of one face sticking or sliding at tiny
+speeds under a torque: thousands of sweeps). Those are solved as a root of the Alart–Curnier
+function (Alart & Curnier, "A mixed formulation for frictional contact problems prone to
+Newton like solution methods", CMAME 92, 1991), per contact i with r = 1/A_nn of that contact,
+v = b + A λ:
+
+    z_n = λ_n − r (v_n − target),     F_n = λ_n − max(z_n, 0)
+    z_t = λ_t − r v_t,               F_t = λ_t − P_ρ(z_t),   ρ = μ (max(z_n, 0) + extra)
+
+where P_ρ projects onto the disk |·| ≤ ρ. F = 0 exactly at the Signorini–Coulomb conditions of
+``solve`` (F_n = 0 ⇔ λ_n ≥ 0, v_n ≥ target, complementarity; F_t = 0 ⇔ |λ_t| ≤ ρ and v_t = 0
+inside, v_t = −s λ_t with s ≥ 0 on the circle), so a root is also a fixed point of
+Gauss–Seidel. The step solves G Δ = −F with G an element of the generalised Jacobian (the
+per-contact blocks with the disk projection's derivative ρ/|z_t| (I − ẑ ẑᵀ) and its radius'
+μ ẑ ∂z_n: Bertails-Descoteaux et al., "A nonsmooth Newton solver for capturing exact Coulomb
+friction in fiber assemblies", ACM TOG 2011, §4) by a least-squares solution
+(a face's four corners make A, hence G, singular: the regularised normal equations, ``RIDGE``), and a backtracking (Armijo) line search on
+|F|² picks the step length. The caller finishes with Gauss–Seidel, whose sweep test decides
+convergence: "converged" keeps the one meaning ``SolverSettings.tolerance`` states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ARMIJO = 1e-4  # sufficient decrease of |F|² per unit step (Nocedal & Wright, 2006, §3.1)
+HALVINGS = 30  # line-search halvings before the step is called a stall
+# The least-squares step solves the regularised normal equations (GᵀG + δ I) Δ = −GᵀF (a
+# Levenberg–Marquardt step with a tiny δ: Nocedal & Wright, "Numerical Optimization", 2006,
+# §10.3) by Cholesky: 20× cheaper than an SVD pseudo-inverse for 3C ≤ 24 and the same step
+# along the singular directions σ² ≫ δ. δ = RIDGE × max diag(GᵀG): above the rounding of GᵀG's
+# entries (3C ε ‖G‖² ≤ 24 ε ≈ 5e-15 relative), so the matrix is positive definite in floating
+# point, and G's null space (a face's redundant corners) gets no step.
+RIDGE = 1e-14
+# Newton stops when no contact's residual, in velocity units (|F| A_nn), exceeds this share of
+# the solve's tolerance × scale: the closing Gauss–Seidel sweep then meets the tolerance.
+MARGIN = 1e-2
+GAIN = 10.0
+
+
+def residual(delassus, free, target, mu, extra, lam):
+    """The Alart–Curnier function F (N, C, 3) at ``lam`` (N, C, 3) and what its Jacobian
+    needs: (F, r (N, C), z_n (N, C), z_t (N, C, 2), ρ (N, C))."""
+    size, c, _ = lam.shape
+    a_nn = np.diagonal(delassus, axis1=-2, axis2=-1)[:, 0::3]
+    r = GAIN / a_nn
+    v = free + np.einsum("nij,nj->ni", delassus, lam.reshape(size, -1)).reshape(size, c, 3)
+    with np.errstate(invalid="ignore"):  # a −∞ target (contact out of play): z_n = −∞
+        z_n = lam[..., 0] - r * (v[..., 0] - target)
+    p_n = np.maximum(z_n, 0.0)
+    rho = mu * (p_n + extra)
+    z_t = lam[..., 1:] - r[..., None] * v[..., 1:]
+    norm = np.sqrt(np.sum(z_t * z_t, axis=-1))
+    out = norm > rho
+    p_t = np.where(out[..., None], z_t * (rho / np.where(out, norm, 1.0))[..., None], z_t)
+    f = lam - np.concatenate((p_n[..., None], p_t), -1)
+    return f, r, z_n, z_t, rho
+
+
+def jacobian(delassus, mu, r, z_n, z_t, rho):
+    """An element G (N, 3C, 3C) of the generalised Jacobian of ``residual``: G = I − ∂P ∂z/∂λ
+    with ∂z/∂λ = I − R A (R: r of each contact on its three rows)."""
+    size, c = r.shape
+    n = 3 * c
+    eye = np.eye(n)
+    m = (eye - np.repeat(r, 3, axis=-1)[..., None] * delassus).reshape(size, c, 3, n)
+    active = (z_n > 0)[..., None]
+    dn = np.where(active, m[:, :, 0], 0.0)  # ∂ max(z_n, 0)
+    norm = np.sqrt(np.sum(z_t * z_t, axis=-1))
+    out = norm > rho
+    unit = z_t / np.where(out, norm, 1.0)[..., None]
+    shrink = rho / np.where(out, norm, 1.0)
+    mt = m[:, :, 1:]  # (N, C, 2, n)
+    tangent_proj = np.einsum("nci,ncj->ncij", unit, unit)
+    proj = (np.eye(2) - tangent_proj) * shrink[..., None, None]
+    dt_out = np.einsum("ncij,ncjk->ncik", proj, mt) + np.einsum(
+        "nci,nck->ncik", unit * mu[:, None], dn
+    )
+    dt = np.where(out[..., None, None], dt_out, mt)
+    dp = np.concatenate((dn[:, :, None], dt), 2).reshape(size, n, n)
+    return eye - dp
+
+
+def newton(delassus, free, target, mu, lam, extra, budget, tolerance):
+    """Newton steps from ``lam`` (N, C, 3) on each element until its residual is below
+    ``MARGIN`` × ``tolerance`` × its velocity scale, its line search stalls, or it has taken
+    ``budget`` (N,) steps. Returns (lam, steps (N,)). ``delassus`` (N, 3C, 3C), ``free``
+    (N, C, 3), ``target`` and ``extra`` (N, C), ``mu`` (C,)."""
+    size, c, _ = free.shape
+    lam = np.array(lam, dtype=float)
+    steps = np.zeros(size, int)
+    budget = np.broadcast_to(budget, (size,))
+    if size == 0 or np.max(budget) <= 0:
+        return lam, steps
+    finite = np.isfinite(target)
+    scale = np.max(np.abs(free.reshape(size, -1)), axis=-1)
+    scale = np.maximum(scale, np.max(np.where(finite, np.abs(target), 0.0), axis=-1))
+    scale = np.maximum(scale, 1e-300)
+    a_nn = np.diagonal(delassus, axis1=-2, axis2=-1)[:, 0::3]
+    goal = MARGIN * tolerance * scale
+    idx = np.arange(size)
+    f, r, z_n, z_t, rho = residual(delassus, free, target, mu, extra, lam)
+    for _ in range(int(np.max(budget))):
+        done = np.max(np.abs(f) * a_nn[idx, :, None], axis=(-1, -2)) <= goal[idx]
+        done |= steps[idx] >= budget[idx]
+        if done.all():
+            break
+        keep = ~done
+        idx, f, r, z_n, z_t, rho = idx[keep], f[keep], r[keep], z_n[keep], z_t[keep], rho[keep]
+        a, b, t, x = delassus[idx], free[idx], target[idx], extra[idx]
+        g = jacobian(a, mu, r, z_n, z_t, rho)
+        normal = np.einsum("nki,nkj->nij", g, g)
+        ridge = RIDGE * np.max(np.diagonal(normal, axis1=-2, axis2=-1), axis=-1)
+        normal += ridge[:, None, None] * np.eye(g.shape[-1])
+        rhs = np.einsum("nki,nk->ni", g, f.reshape(len(idx), -1))
+        step = -np.linalg.solve(normal, rhs[..., None])[..., 0].reshape(f.shape)
+        phi = np.sum(f * f, axis=(-1, -2))
+        alpha = np.ones(len(idx))
+        accepted = np.zeros(len(idx), bool)
+        best = (f, r, z_n, z_t, rho)
+        trial_lam = lam[idx]
+        for _ in range(HALVINGS):
+            trial = lam[idx] + alpha[:, None, None] * step
+            parts = residual(a, b, t, mu, x, trial)
+            ok = ~accepted & (
+                np.sum(parts[0] * parts[0], axis=(-1, -2)) <= (1.0 - 2.0 * ARMIJO * alpha) * phi
+            )
+            if ok.any():
+                best = tuple(
+                    np.where(_expand(ok, p), p, q) for p, q in zip(parts, best, strict=True)
+                )
+                trial_lam = np.where(ok[:, None, None], trial, trial_lam)
+                accepted |= ok
+            if accepted.all():
+                break
+            alpha = np.where(accepted, alpha, 0.5 * alpha)
+        lam[idx] = trial_lam
+        steps[idx] += accepted
+        # A stalled line search ends that element's Newton; Gauss–Seidel goes on from λ.
+        idx = idx[accepted]
+        f, r, z_n, z_t, rho = (p[accepted] for p in best)
+        if len(idx) == 0:
+            break
+    return lam, steps
+
+
+def _expand(mask, array):
+    return mask.reshape((-1,) + (1,) * (array.ndim - 1))
+
+
+__all__ = ["newton", "residual", "jacobian"]

@@ -1,0 +1,230 @@
+"""The contact solve's Newton polish (``contacts.newton``, ``compiled.contact_newton``) on a
+step that Gauss–Seidel alone stops at its cap: taken from a ``RigidEnv/BoxLanding-v0`` rollout
+(``python -m rigid_env.bench.contact_solve --rollout boxlanding``: seed 0, the box resting on
+its ±x face under a body torque, three corners loaded). From the active-set start Gauss–Seidel
+needs ~600 sweeps to the tolerance (cap 500); with the polish the step converges.
+
+Each test runs on both backends (``conftest``): scene tests step that backend, solver tests call
+that backend's ``converge`` on the element's contact problem (assembled by the numpy path).
+"""
+
+import numpy as np
+import pytest
+
+from rigid_env import sim
+from rigid_env.sim.compiled.contact_gauss_seidel import WORK_PER_CONTACT
+from rigid_env.sim.compiled.contact_newton import converge as compiled_converge
+from rigid_env.sim.contacts import newton as newton_module
+from rigid_env.sim.contacts import solve as solve_module
+from rigid_env.sim.contacts import stages
+
+EPS = np.finfo(float).eps
+
+# The state before the step and the body torque (BoxLanding-v0: box of half extents 0.1, 0.15,
+# 0.2 m and 1 kg, Δt = 1/240 s, implicit_gyro, ground ε = 0.3, μ = 0.5).
+POSITION = [0.4271659175325319, 0.543092449097959, 0.10000000000000003]
+ORIENTATION = [0.5600910704027815, -0.43162251198827256, 0.5600910704027816, 0.4316225119882727]
+TORQUE = [0.9674058556556702, -0.9053640961647034, 0.6765889525413513]
+# A second capped step of the same rollout (resting on its ±y face), for the batching test.
+POSITION_2 = [-0.11081974500672434, 0.5673844115891625, 0.15000000000000008]
+ORIENTATION_2 = [0.6645081324763918, 0.24172079321551565, -0.24172079321551573, -0.664508132476392]
+TORQUE_2 = [0.4297722280025482, -0.7789463996887207, 0.9834898114204407]
+
+
+def landing_scene(settings=None, backend=None):
+    return sim.Scene(
+        sim.Body.box((0.1, 0.15, 0.2), 1.0),
+        1 / 240,
+        integrator="implicit_gyro",
+        gravity=(0.0, 0.0, -9.81),
+        ground=sim.Ground(restitution=0.3, friction=0.5),
+        contact_solver=settings,
+        backend=backend,
+    )
+
+
+def regression_state(scene):
+    return scene.initial_state(position=POSITION, orientation=ORIENTATION)
+
+
+def contact_problem(monkeypatch):
+    """The element's contact problem as ``solve_inelastic`` sees it on the numpy path:
+    (A (1, 3C, 3C), free (1, C, 3), target (1, C), μ (C,), extra (1, C), settings)."""
+    seen = {}
+    original = stages.solve_inelastic
+
+    def spy(*args):
+        seen["args"] = args
+        return original(*args)
+
+    monkeypatch.setattr(stages, "solve_inelastic", spy)
+    scene = landing_scene(backend="numpy")
+    scene.step(regression_state(scene), body_torque=[TORQUE])
+    layout, rows, u, impulse, dt, settings, gap, remaining = seen["args"]
+    free = rows.velocity(u, layout)
+    if gap is None:
+        gap, remaining = rows.gap, np.full(len(u), dt)
+    target = np.where(gap > 0, -gap / remaining[:, None], 0.0)  # as solve_inelastic
+    return rows.delassus, free, target, layout.mu, impulse, settings
+
+
+def solve(backend, a, free, target, mu, extra, settings):
+    """That backend's ``converge`` from λ = 0: (λ (C, 3), sweeps, converged, Newton steps)."""
+    if backend == "numpy":
+        lam, sweeps, converged, steps = solve_module.converge(
+            a, free, target, mu, np.zeros(free.shape), settings, extra
+        )
+        return lam[0], int(sweeps[0]), bool(converged[0]), int(steps[0])
+    c = target.shape[1]
+    lam = np.zeros(3 * c)
+    sweeps, converged, steps = compiled_converge(
+        a[0],
+        free[0].ravel(),
+        target[0],
+        mu,
+        lam,
+        extra[0],
+        settings.max_iterations,
+        settings.tolerance,
+        settings.newton_after,
+        settings.newton_steps,
+        np.empty(WORK_PER_CONTACT * c),
+    )
+    return lam.reshape(c, 3), sweeps, converged, steps
+
+
+def velocity_bound(a, free, target, mu, extra, lam_1, lam_2):
+    """A bound on |A (λ₁ − λ₂)|₂ for two approximate roots of the Alart–Curnier function F
+    (``contacts.newton``). Where F is smooth between them with a nonsingular Jacobian G,
+    F(λ₁) − F(λ₂) = G (λ₁ − λ₂) + o(|λ₁ − λ₂|), so |A (λ₁ − λ₂)| ≤ ‖A‖ ‖G⁻¹‖ (|F(λ₁)| +
+    |F(λ₂)|); the factor 2 covers the o(·) term, 100 ε ‖A‖ |λ| the rounding of A λ.
+    The box's fourth corner touches (v_n = target) with next to no load: there F has its kink
+    z_n = 0, and its "active" side is singular (four coplanar corners on three degrees of
+    freedom: the corner may take any small share of the load, so the solution is a small set,
+    not a point). Contacts carrying under 1e-6 of the largest load in both answers are taken
+    on their inactive side (F_n = λ_n, F_t = λ_t), which differs from the true F by at most
+    |λ_n| + |λ_t| of those contacts, added to |F|. The share only picks the smooth piece used:
+    any choice with G nonsingular gives a valid bound."""
+    f_1, r, z_n, z_t, rho = newton_module.residual(a, free, target, mu, extra, lam_1[None])
+    f_2 = newton_module.residual(a, free, target, mu, extra, lam_2[None])[0]
+    loads = np.maximum(lam_1[:, 0], lam_2[:, 0])
+    unloaded = loads <= 1e-6 * np.max(loads)
+    z_n = np.where(unloaded, -1.0, z_n)
+    rho = np.where(unloaded, mu * extra[0], rho)
+    g = newton_module.jacobian(a, mu, r, z_n, z_t, rho)[0]
+    inverse = np.linalg.norm(np.linalg.inv(g), 2)
+    assert inverse < 1e6  # G nonsingular on that piece
+    norm_a = np.linalg.norm(a[0], 2)
+    kink = sum(np.linalg.norm(lam[unloaded]) for lam in (lam_1, lam_2))
+    spread = np.linalg.norm(f_1) + np.linalg.norm(f_2) + kink
+    return 2 * norm_a * inverse * spread + 100 * EPS * norm_a * np.linalg.norm(lam_1)
+
+
+def test_regression_step_converges_with_the_newton_polish(sim_backend):
+    scene = landing_scene()
+    scene.step(regression_state(scene), body_torque=[TORQUE])
+    report = scene.report["contacts"]
+    assert report.engaged == 1
+    assert report.capped == 0
+    assert report.newton > 0
+    assert report.iterations < sim.SolverSettings().max_iterations
+
+
+def test_without_newton_the_step_is_capped_and_reported(sim_backend):
+    # The case is a hard one for Gauss–Seidel alone (what main did): the cap is reached and
+    # reported, not hidden.
+    scene = landing_scene(sim.SolverSettings(newton_steps=0))
+    with pytest.warns(sim.ContactSolverWarning):
+        scene.step(regression_state(scene), body_torque=[TORQUE])
+    report = scene.report["contacts"]
+    assert report.capped == 1
+    assert report.newton == 0
+
+
+def test_regression_solution_meets_signorini_and_coulomb(sim_backend, monkeypatch):
+    a, free, target, mu, extra, settings = contact_problem(monkeypatch)
+    lam, sweeps, converged, steps = solve(sim_backend, a, free, target, mu, extra, settings)
+    assert converged and steps > 0
+    v = free[0] + (a[0] @ lam.ravel()).reshape(lam.shape)
+    # Tolerances. "Converged" means the last sweep changed no contact velocity by more than
+    # tolerance × scale (scale: the largest |free| or |target|); each contact's update makes its
+    # own conditions exact to rounding (normal: v_n = target when λ_n > 0; tangent: v_t = −γ λ_t
+    # on the circle, v_t = 0 inside), and the updates of the other contacts after it in that
+    # sweep move its velocity by at most that change. Rounding of v = b + A λ: 3C terms, each
+    # within ε |A_ij λ_j|, for 3C = 12: 12 ε Σ|A λ| (doubled for the sweep's own update).
+    scale = max(np.max(np.abs(free)), np.max(np.abs(target)))
+    rounding = 24 * EPS * (np.abs(a[0]) @ np.abs(lam.ravel())).reshape(lam.shape)
+    slack = settings.tolerance * scale + rounding
+    lam_n, v_n = lam[:, 0], v[:, 0]
+    assert np.all(lam_n >= 0)  # the normal update's max(·, 0) is the last write: exact
+    assert np.all(v_n >= target[0] - slack[:, 0])
+    assert np.all(np.abs(np.where(lam_n > 0, v_n - target[0], 0.0)) <= slack[:, 0])
+    radius = mu * (lam_n + extra[0])
+    size = np.linalg.norm(lam[:, 1:], axis=-1)
+    slip = np.linalg.norm(v[:, 1:], axis=-1)
+    tangent_slack = np.hypot(slack[:, 1], slack[:, 2])
+    # The disk step scales λ_t onto the circle and rotates it back by the eigenvectors of A_tt
+    # (orthogonal to rounding): a few roundings, 8 ε relative.
+    assert np.all(size <= radius * (1 + 8 * EPS))
+    sliding = slip > tangent_slack
+    sticking = size < radius * (1 - 8 * EPS)
+    assert np.all(slip[sticking] <= tangent_slack[sticking])
+    # Sliding: on the circle and opposing the slip. After the contact's update v_t = −γ λ_t; the
+    # later updates move v_t by at most the slack, so |v_t + |v_t| λ̂_t| ≤ 2 slack, i.e. the
+    # angle between λ_t and −v_t is at most 2 slack / |v_t| and |λ_t + ρ v̂_t| ≤ 2 ρ slack / |v_t|.
+    # A radius at rounding of the element's loads (ρ ≤ 100 ε max λ_n: a corner loaded by
+    # rounding only) takes the disk step's radial branch instead, within 2 ρ of any direction:
+    # an allowance of 2 × 100 ε max λ_n.
+    assert np.all(size[sliding] >= radius[sliding] * (1 - 8 * EPS))
+    unit_slip = v[:, 1:] / np.where(slip > 0, slip, 1.0)[:, None]
+    opposed = np.linalg.norm(lam[:, 1:] + radius[:, None] * unit_slip, axis=-1)
+    allowed = 2 * radius * tangent_slack / np.where(slip > 0, slip, 1.0)
+    allowed += 2 * 100 * EPS * np.max(lam_n)
+    assert np.all(opposed[sliding] <= allowed[sliding])
+
+
+def test_newton_answer_equals_a_long_gauss_seidel_run(sim_backend, monkeypatch):
+    a, free, target, mu, extra, settings = contact_problem(monkeypatch)
+    lam, *_ = solve(sim_backend, a, free, target, mu, extra, settings)
+    long = sim.SolverSettings(max_iterations=200_000, tolerance=1e-15, newton_steps=0)
+    reference, sweeps, converged = solve_module.gauss_seidel(
+        a, free, target, mu, np.zeros(free.shape), long, extra
+    )
+    assert converged[0] and sweeps[0] > settings.max_iterations  # a long run indeed
+    bound = velocity_bound(a, free, target, mu, extra, lam, reference[0])
+    change = np.linalg.norm(a[0] @ (lam.ravel() - reference[0].ravel()))
+    assert change <= bound
+
+
+def test_backends_agree_on_the_regression_problem(sim_backend, monkeypatch):
+    a, free, target, mu, extra, settings = contact_problem(monkeypatch)
+    lam_numpy, *_ = solve("numpy", a, free, target, mu, extra, settings)
+    lam_compiled, *_ = solve("compiled", a, free, target, mu, extra, settings)
+    bound = velocity_bound(a, free, target, mu, extra, lam_numpy, lam_compiled)
+    change = np.linalg.norm(a[0] @ (lam_numpy.ravel() - lam_compiled.ravel()))
+    assert change <= bound
+
+
+def test_batched_step_equals_each_element_alone(sim_backend):
+    scene = landing_scene()
+    both = scene.initial_state(
+        position=[[POSITION], [POSITION_2]], orientation=[[ORIENTATION], [ORIENTATION_2]]
+    )
+    out = scene.step(both, body_torque=[[TORQUE], [TORQUE_2]])
+    assert scene.report["contacts"].capped == 0
+    for i, (x, q, t) in enumerate(
+        [(POSITION, ORIENTATION, TORQUE), (POSITION_2, ORIENTATION_2, TORQUE_2)]
+    ):
+        alone = scene.step(scene.initial_state(position=x, orientation=q), body_torque=[t])
+        for field in ("position", "orientation", "linear_velocity", "angular_velocity"):
+            assert np.array_equal(getattr(out, field)[i], getattr(alone, field))
+
+
+@pytest.mark.parametrize(
+    "name, value",
+    [("newton_after", 0), ("newton_after", 2.5), ("newton_steps", -1), ("newton_steps", True)],
+)
+def test_newton_settings_are_validated(sim_backend, name, value):
+    with pytest.raises(ValueError, match=name):
+        sim.SolverSettings(**{name: value})
+    assert sim.SolverSettings(**{name: 1}).__getattribute__(name) == 1  # the next call works
