@@ -2,14 +2,11 @@
 (ground contacts), and the step's ``ContactReport`` from the report columns.
 
 Order as numpy's: free contact velocities and targets (the gaps where the impacts left them,
-over the time left), the particle start probed by one sweep, then rounds of Gauss–Seidel with Newton polishes
-(``contact_newton.converge``) from the particle start or from the active-set start
-(``SolverSettings.start``), and an unconverged
-impulse cut back so it adds no kinetic energy (``dissipative``).
-
-numba's disk cache checks only a kernel's own file, so a cached ``solve`` keeps the code of the
-``contact_starts`` it was compiled with: a change there (the active-set start's
-``PUSH_TOLERANCE``) must come with a change of this file, or the cache directory cleared.
+over the time left), the particle start probed by one sweep, then rounds of Gauss–Seidel with
+Newton polishes (``contact_newton.converge``) from the particle start or from the active-set
+start (``SolverSettings.start``), and an unconverged impulse cut back so it adds no kinetic
+energy (``dissipative``). A cached ``solve`` is recompiled when any simulator source changes
+(``cache.py``), so an edit of ``contact_starts`` reaches it.
 """
 
 from __future__ import annotations
