@@ -148,9 +148,11 @@ def rollout_boxlanding(
     import gymnasium as gym
 
     import rigid_env.envs  # noqa: F401  (registers the envs)
+    from rigid_env.envs.box_landing import BoxLandingTask
 
     env = gym.make("RigidEnv/BoxLanding-v0")
-    task = env.unwrapped.task
+    task = env.unwrapped.task  # type: ignore[attr-defined]
+    assert isinstance(task, BoxLandingTask)
     model = task.scene.model
     scene = sim.Scene(
         task.body,
