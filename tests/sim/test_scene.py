@@ -280,8 +280,10 @@ def test_overflowing_initial_orientation_is_normalised_not_zeroed():
 
 def _scenes_of_every_kind():
     spring = sim.Spring(0, anchor=(0, 0, 1), stiffness=20.0, damping=0.3, attach=(0.1, 0, 0))
+    # Every force term, as test_compiled.py's ALL_FORCES: the same stage tuples, compiled once.
+    forces = dict(gravity=(0, 0, -9.81), linear_damping=0.1, angular_damping=0.2, springs=[spring])
     for name in sim.INTEGRATORS:
-        yield name, sim.Scene(box(), 0.01, integrator=name, gravity=(0, 0, -9.81), springs=[spring])
+        yield name, sim.Scene(box(), 0.01, integrator=name, **forces)
         yield f"{name}-free", sim.Scene(box(), 0.01, integrator=name)
     for name in sim.CONTACT_CAPABLE:
         yield f"{name}-ground", sim.Scene(box(), 0.01, integrator=name, ground=sim.Ground())
