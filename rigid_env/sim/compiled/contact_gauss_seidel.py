@@ -76,6 +76,19 @@ def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
 
 
 @njit(cache=True, error_model="numpy")
+def velocity_scale(free, target):
+    """The element's velocity scale of the stopping tests: its largest free contact velocity or
+    finite target (> 0)."""
+    scale = 0.0
+    for i in range(free.shape[0]):
+        scale = max(scale, abs(free[i]))
+    for i in range(target.shape[0]):
+        if math.isfinite(target[i]):
+            scale = max(scale, abs(target[i]))
+    return max(scale, 1e-300)
+
+
+@njit(cache=True, error_model="numpy")
 def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, work):
     """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
@@ -83,13 +96,7 @@ def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, 
     converged)."""
     c = target.shape[0]
     size = r * c
-    scale = 0.0
-    for i in range(size):
-        scale = max(scale, abs(free[i]))
-    for i in range(c):
-        if math.isfinite(target[i]):
-            scale = max(scale, abs(target[i]))
-    scale = max(scale, 1e-300)
+    scale = velocity_scale(free, target)
     eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
     if r == 3:
         for i in range(c):

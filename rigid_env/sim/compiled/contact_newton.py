@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RIDGE
-from .contact_gauss_seidel import gauss_seidel
+from .contact_gauss_seidel import gauss_seidel, velocity_scale
 
 
 @njit(cache=True, error_model="numpy")
@@ -137,14 +137,7 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
     updated in place. Returns the steps taken."""
     c = target.shape[0]
     size = 3 * c
-    scale = 0.0
-    for i in range(size):
-        scale = max(scale, abs(free[i]))
-    for i in range(c):
-        if math.isfinite(target[i]):
-            scale = max(scale, abs(target[i]))
-    scale = max(scale, 1e-300)
-    goal = MARGIN * tolerance * scale
+    goal = MARGIN * tolerance * velocity_scale(free, target)
     f = np.empty(size)
     f2 = np.empty(size)
     zn = np.empty(c)
