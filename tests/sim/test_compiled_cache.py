@@ -95,3 +95,13 @@ def test_a_second_process_loads_the_compiled_step_from_the_cache(tmp_path):
         shutil.rmtree(drivers, ignore_errors=True)
     assert runs[0] == ["0", "1"]  # compiled, then saved
     assert runs[1] == ["1", "0"]  # loaded
+
+
+def test_importing_the_simulator_does_not_import_numba():
+    """The locator is installed by the first kernel module that compiles (``cache.njit``), not at
+    import: a numpy-backend user does not pay numba's import (~0.5 s)."""
+    import subprocess
+
+    code = "import sys, rigid_env.sim; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False"]

@@ -8,7 +8,8 @@ imports and every stage of the scene has a kernel, else numpy).
 
 Kernel conventions (contacts and integrators written by others follow them)
 ---------------------------------------------------------------------------
-Everything is ``@njit(cache=True, error_model="numpy")``, float64, no ``fastmath`` (results must not depend on the
+Everything is ``@njit(cache=True, error_model="numpy")``, with ``cache.njit`` (numba's, after
+the cache locator that notices an edit of any simulator file is installed), float64, no ``fastmath`` (results must not depend on the
 compiler's reassociation), no allocation in the per-step path where a scalar tuple will do.
 A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
 batch element, on arrays that play the part of the ``StepContext``.
@@ -110,8 +111,3 @@ sources, imports it, and numba caches the compiled driver to disk (``cache=True`
 per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step
 runs.
 """
-
-from .cache import install
-
-# Before any kernel module compiles: numba's cache then notices an edit of any simulator file.
-install()

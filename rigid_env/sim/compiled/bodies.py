@@ -8,8 +8,8 @@ and flags for the numpy shortcuts (diagonal inertia; body axes already principal
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .cache import njit
 from .rotation import rotate, rotate_inverse
 
 # The helpers below take the body table: inlined (numba IR), since a call that passes an array

@@ -11,8 +11,9 @@ numba's own (``__pycache__``, or ``NUMBA_CACHE_DIR``); only the stamp differs.
 
 numba ≥ 0.59 picks a function's locator from ``CacheImpl._locator_classes`` (or from
 ``NUMBA_CACHE_LOCATOR_CLASSES`` when a user sets it, which then takes over). ``install`` puts
-this locator first; it declines every function that is not this package's, so other numba code
-keeps numba's locators.
+this locator first (the package's kernels decorate with this module's ``njit``, which installs
+it); it declines every function that is not this package's, so other numba code keeps numba's
+locators.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pathlib import Path
 _SIM = Path(__file__).resolve().parents[1]
 _OWN_MODULES = ("rigid_env.", "rigid_env_driver_")  # the package, its generated drivers
 _HASH: str | None = None
+_INSTALLED: bool | None = None
 
 
 def sources_hash(root: Path = _SIM) -> str:
@@ -43,9 +45,26 @@ def sources_hash(root: Path = _SIM) -> str:
     return digest
 
 
+def njit(*args, **kwargs):
+    """numba's ``njit``, after ``install``: every kernel module decorates with it, so the
+    locator is in place before the first cached function, and numba is imported by the modules
+    that compile, not by ``import rigid_env.sim``."""
+    install()
+    from numba import njit as numba_njit
+
+    return numba_njit(*args, **kwargs)
+
+
 def install() -> bool:
     """Put ``PackageLocator`` first in numba's locators; False if numba's internals differ (the
     cache then works as numba's alone, with the stale-callee hazard the docstring describes)."""
+    global _INSTALLED
+    if _INSTALLED is None:
+        _INSTALLED = _install()
+    return _INSTALLED
+
+
+def _install() -> bool:
     try:
         from numba.core import caching
     except ImportError:
@@ -54,9 +73,8 @@ def install() -> bool:
     classes = getattr(impl, "_locator_classes", None)
     if not isinstance(classes, list):
         return False
-    locator = _locator_class(caching)
     if not any(getattr(c, "rigid_env_locator", False) for c in classes):
-        classes.insert(0, locator)
+        classes.insert(0, _locator_class(caching))
     return True
 
 
@@ -96,4 +114,4 @@ def _locator_class(caching):
     return PackageLocator
 
 
-__all__ = ["install", "sources_hash"]
+__all__ = ["install", "njit", "sources_hash"]

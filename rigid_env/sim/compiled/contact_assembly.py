@@ -13,10 +13,10 @@ an element that is not, as numpy's stages skip it.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
 from . import bodies
+from .cache import njit
 from .ground import ground_data
 from .layout import ARM, CONTACT, ENGAGED, GAP, JT, PATH_GAP, REPORT, T1, U1, Q, V, W
 from .registry import Kernel, register

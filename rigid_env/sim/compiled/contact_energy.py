@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from ..contacts.stages import MAX_HALVINGS
 from .bodies import apply_inertia
+from .cache import njit
 from .contact_assembly import F_DT, I_GRAVITY, I_K, contact_data, unpack
 from .layout import (
     CONTACT,

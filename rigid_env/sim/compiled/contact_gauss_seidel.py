@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from ..contacts.solve import DISK_NEWTON_STEPS
+from .cache import njit
 
 WORK_PER_CONTACT = 9  # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep
 

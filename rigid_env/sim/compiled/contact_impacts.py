@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,

@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RIDGE
+from .cache import njit
 from .contact_gauss_seidel import gauss_seidel, velocity_scale
 
 

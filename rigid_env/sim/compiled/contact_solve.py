@@ -12,9 +12,9 @@ energy (``dissipative``). A cached ``solve`` is recompiled when any simulator so
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..contacts.stages import REPORT_KEY, ContactReport, warn_capped
+from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,

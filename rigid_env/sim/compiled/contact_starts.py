@@ -4,9 +4,9 @@ the ground particle start and the active-set start (pseudo-inverse, rounds of ``
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..contacts.warm_start import PUSH_TOLERANCE, ROUNDS
+from .cache import njit
 
 
 @njit(cache=True, error_model="numpy")

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np  # noqa: F401 (used by the templates)
-from numba import njit
 
 from ..elliptic import _Q_RF, _Q_RJ, _SERIES_RADIUS, _SN_SERIES, MAX_DUPLICATIONS
 from ..integrators.splitting import _W0, _W1
@@ -28,6 +27,7 @@ from .bodies import (  # noqa: F401 (used by the templates)
     vec3,
     vec4,
 )
+from .cache import njit
 from .integrators import (  # noqa: F401 (used by the templates)
     axpy,
     implicit_half_kick,

@@ -7,10 +7,10 @@ adding a zero changes no bit of a finite sum).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..model import Model
 from . import bodies
+from .cache import njit
 from .registry import ForceKernel, register_force
 from .rotation import cross, matmul, quat_rotate, quat_to_matrix, transpose
 

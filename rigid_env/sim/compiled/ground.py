@@ -9,9 +9,9 @@ lower vertex index wins. Detection runs at the start-of-step pose (x0, q0), as n
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..contacts.ground import GroundContacts
+from .cache import njit
 from .layout import ARM, BODY, CONTACT, GAP, Q0, X0
 from .registry import Kernel, register
 from .rotation import quat_rotate

@@ -17,7 +17,6 @@ import importlib
 import math
 
 import numpy as np
-from numba import njit
 
 from ..integrators.splitting import _W0, _W1
 from . import bodies
@@ -33,6 +32,7 @@ from .bodies import (
     vec3,
     vec4,
 )
+from .cache import njit
 from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_C, S_K, S_REST, spring_table
 from .layout import DISPLACEMENT, FORCE, TORQUE, Q, V, W, X
 from .registry import INTEGRATORS, Kernel, register, register_integrator

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from .cache import njit
 from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, STEP_TUPLE_SIZE, V0, W0, X0, Q, V, W, X
 
 BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots

@@ -3,8 +3,8 @@
 Gauss–Seidel crawls on a few cases (several contacts of one face sticking or sliding at tiny
 speeds under a torque: thousands of sweeps). Those are solved as a root of the Alart–Curnier
 function (Alart & Curnier, "A mixed formulation for frictional contact problems prone to
-Newton like solution methods", CMAME 92, 1991), per contact i with r = 1/A_nn of that contact,
-v = b + A λ:
+Newton like solution methods", CMAME 92, 1991), per contact i with r = ``GAIN``/A_nn of that
+contact, v = b + A λ:
 
     z_n = λ_n − r (v_n − target),     F_n = λ_n − max(z_n, 0)
     z_t = λ_t − r v_t,               F_t = λ_t − P_ρ(z_t),   ρ = μ (max(z_n, 0) + extra)
@@ -15,9 +15,9 @@ inside, v_t = −s λ_t with s ≥ 0 on the circle), so a root is also a fixed p
 Gauss–Seidel. The step solves G Δ = −F with G an element of the generalised Jacobian (the
 per-contact blocks with the disk projection's derivative ρ/|z_t| (I − ẑ ẑᵀ) and its radius'
 μ ẑ ∂z_n: Bertails-Descoteaux et al., "A nonsmooth Newton solver for capturing exact Coulomb
-friction in fiber assemblies", ACM TOG 2011, §4) by a least-squares solution
-(a face's four corners make A, hence G, singular: the regularised normal equations, ``RIDGE``), and a backtracking (Armijo) line search on
-|F|² picks the step length. The caller finishes with Gauss–Seidel, whose sweep test decides
+friction in fiber assemblies", ACM TOG 2011, §4) by a least-squares solution (a face's four
+corners make A, hence G, singular: the regularised normal equations, ``RIDGE``), and a
+backtracking (Armijo) line search on |F|² picks the step length. The caller finishes with Gauss–Seidel, whose sweep test decides
 convergence: "converged" keeps the one meaning ``SolverSettings.tolerance`` states.
 """
 
@@ -37,6 +37,8 @@ RIDGE = 1e-14
 # Newton stops when no contact's residual, in velocity units (|F| A_nn), exceeds this share of
 # the solve's tolerance × scale: the closing Gauss–Seidel sweep then meets the tolerance.
 MARGIN = 1e-2
+# r = GAIN / A_nn: any r > 0 gives the same roots; 10 converged 148 of 153 capped BoxLanding
+# cases against 146 for 1 (the rollout bench's cases, measured when the polish was written).
 GAIN = 10.0
 
 
