@@ -1,5 +1,7 @@
 """Starting impulses of one element's solve, mirroring ``contacts.warm_start`` (see there):
-the ground particle start and the active-set start (pseudo-inverse, rounds of ``ROUNDS``)."""
+the ground particle start and the active-set start (rounds of ``ROUNDS``). Each round solves
+its live rows only, for their minimum-norm solution (``min_norm``, numpy: ``pinv`` of the
+whole system with identity rows for the dead ones, which gives the dead rows zero)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import numpy as np
 
 from ..contacts.warm_start import PUSH_TOLERANCE, ROUNDS
 from .cache import njit
+from .min_norm import min_norm
 
 
 @njit(cache=True, error_model="numpy")
@@ -46,11 +49,15 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
     budget = extra > 0
     live = np.empty(size, np.bool_)
     cols = np.empty((size, size))
-    m = np.empty((size, size))
     rhs = np.empty(size)
     known = np.zeros(size)
     nxt = np.empty(c, np.bool_)
     over = np.empty(c, np.bool_)
+    index = np.empty(size, np.int64)
+    m = np.empty((size, size))
+    sub_rhs = np.empty(size)
+    sub_x = np.empty(size)
+    work = np.empty((3, size, size))
     settled = False
     for _ in range(ROUNDS):
         for i in range(c):
@@ -62,18 +69,16 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
         for i in range(size):
             for j in range(size):
                 cols[i, j] = a[i, j]
+        symmetric = True
         for j in range(c):
+            if bound[j] and live[3 * j]:
+                symmetric = False
             mix0 = (mu[j] * bound[j]) * direction[j, 0]
             mix1 = (mu[j] * bound[j]) * direction[j, 1]
             for i in range(size):
                 cols[i, 3 * j] += cols[i, 3 * j + 1] * mix0
             for i in range(size):
                 cols[i, 3 * j] += cols[i, 3 * j + 2] * mix1
-        for i in range(size):
-            for j in range(size):
-                m[i, j] = cols[i, j] if live[i] and live[j] else 0.0
-            if not live[i]:
-                m[i, i] += 1.0
         # The budget's part of a boundary contact's friction, μ d extra, is known.
         for i in range(c):
             kn = mu[i] * extra[i]
@@ -84,12 +89,22 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             for j in range(size):
                 acc += a[i, j] * known[j]
             rhs[i] = goal[i] - acc if live[i] else 0.0
-        inv = np.linalg.pinv(m)
+        # The live rows' system, solved for its minimum-norm solution; dead rows get zero.
+        count = 0
         for i in range(size):
-            acc = 0.0
-            for j in range(size):
-                acc += inv[i, j] * rhs[j]
-            lam[i] = acc
+            if live[i]:
+                index[count] = i
+                count += 1
+        sub = m[:count, :count]
+        for i in range(count):
+            sub_rhs[i] = rhs[index[i]]
+            for j in range(count):
+                sub[i, j] = cols[index[i], index[j]]
+        min_norm(sub, sub_rhs[:count], sub_x[:count], symmetric, work[:, :count, :count])
+        for i in range(size):
+            lam[i] = 0.0
+        for i in range(count):
+            lam[index[i]] = sub_x[i]
         for i in range(c):
             ln = max(lam[3 * i], 0.0) if on[i] else 0.0
             cap = mu[i] * (ln + extra[i])

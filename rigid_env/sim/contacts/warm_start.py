@@ -24,6 +24,12 @@ ROUNDS = 6  # active-set rounds (a stack of two needs 2–3)
 # fourth corner) is otherwise added or not by rounding, and the two backends then start from
 # different sets (the friction problem of a sliding face need not have a unique solution).
 PUSH_TOLERANCE = 1e-12
+# Singular values below this share of the largest are rounding, not a direction of the system:
+# the active set's equations are rank-deficient by construction (a face's four corners give four
+# normal rows of rank three), and pinv's default (1e-15) keeps an exactly dependent row's
+# rounding-size singular value and with it an impulse of ~1e15 its size. ``compiled.min_norm``
+# stops its pivoted Cholesky at the same share of the largest diagonal.
+RANK_TOLERANCE = 1e-12
 
 
 def particle_start(layout, short, lam_n):
@@ -78,7 +84,9 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
         known = np.zeros((size, c, 3))
         known[..., 1:] = np.where(bound[..., None], (mu * extra)[..., None] * direction, 0.0)
         rhs = goal - (delassus @ known.reshape(size, -1, 1))[..., 0]
-        lam = (np.linalg.pinv(a) @ np.where(live, rhs, 0.0)[..., None]).reshape(size, c, 3)
+        lam = (
+            np.linalg.pinv(a, rcond=RANK_TOLERANCE) @ np.where(live, rhs, 0.0)[..., None]
+        ).reshape(size, c, 3)
         lam_n = np.where(on, np.maximum(lam[..., 0], 0.0), 0.0)
         cap = mu * (lam_n + extra)
         lam_t = np.where(bound[..., None], cap[..., None] * direction, lam[..., 1:])
@@ -108,4 +116,4 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
     return lam
 
 
-__all__ = ["PUSH_TOLERANCE", "ROUNDS", "active_set_start", "particle_start"]
+__all__ = ["PUSH_TOLERANCE", "RANK_TOLERANCE", "ROUNDS", "active_set_start", "particle_start"]

@@ -1,0 +1,143 @@
+"""The minimum-norm solution x = A⁺ b of a small square system, for the active-set start.
+
+The active set's equations are rank-deficient by construction (a face's four corners give four
+normal rows of rank three; a body has six degrees of freedom however many rows its contacts
+add), and the start wants their minimum-norm solution, numpy's ``pinv`` (redundant supports
+share the load equally). LAPACK's SVD behind numba's ``pinv`` costs ~13 µs for a 12×12 system
+per call; this costs ~1 µs:
+
+* A symmetric positive semidefinite (the Delassus matrix's live block, no contact at its cone's
+  boundary): pivoted Cholesky A = L̃ L̃ᵀ stopped at the numerical rank r (Higham, "Accuracy and
+  Stability of Numerical Algorithms", 2nd ed., 2002, §10.3), L̃ (k×r) of full column rank, and
+  A⁺ = L̃ (L̃ᵀL̃)⁻² L̃ᵀ: with the thin SVD L̃ = U S Vᵀ both sides are U S⁻² Uᵀ.
+* any other A: A⁺ b = (AᵀA)⁺ Aᵀ b (Penrose's identity A⁺ = (AᵀA)⁺ Aᵀ), the same on AᵀA.
+
+Rank: the factorisation stops when no remaining diagonal exceeds ``RANK_TOLERANCE`` (numpy's
+``rcond``, ``warm_start``) times the largest diagonal of A. An exactly dependent row leaves a
+diagonal of rounding size, ~k ε of the largest (LAPACK's ``dpstrf`` stops at k ε; here k ≤ 3C),
+so 1e-12 keeps a margin of a few hundred over it. Through AᵀA the threshold is on squared
+singular values: a direction of A weaker than 1e-6 of the largest is left out there, which only
+moves the start that Gauss–Seidel polishes (a boundary contact's system has none in practice).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..contacts.warm_start import RANK_TOLERANCE
+from .cache import njit
+
+
+@njit(cache=True, error_model="numpy")
+def psd_min_norm(s, b, x, factor, gram):
+    """x ← S⁺ b for S (k, k) symmetric positive semidefinite (read only); ``factor`` (k, k) and
+    ``gram`` (k, k) scratch. Returns the rank used."""
+    k = s.shape[0]
+    remaining = np.empty(k)
+    chosen = np.zeros(k, np.bool_)
+    top = 0.0
+    for i in range(k):
+        remaining[i] = s[i, i]
+        top = max(top, s[i, i])
+    # Pivoted Cholesky, outer-product form, rows kept in place: column j of L̃ is zero on the
+    # rows pivoted before it.
+    rank = 0
+    for j in range(k):
+        p = -1
+        best = RANK_TOLERANCE * top
+        for i in range(k):
+            if not chosen[i] and remaining[i] > best:
+                best = remaining[i]
+                p = i
+        if p < 0:
+            break
+        root = math.sqrt(remaining[p])
+        chosen[p] = True
+        for i in range(k):
+            if chosen[i] and i != p:
+                factor[i, j] = 0.0
+                continue
+            acc = s[i, p]
+            for m in range(j):
+                acc -= factor[i, m] * factor[p, m]
+            factor[i, j] = acc / root
+        factor[p, j] = root
+        for i in range(k):
+            if not chosen[i]:
+                remaining[i] -= factor[i, j] * factor[i, j]
+        rank += 1
+    r = rank
+    # H = L̃ᵀ L̃ (r, r), symmetric positive definite, factored H = C Cᵀ in place.
+    for i in range(r):
+        for j in range(i + 1):
+            acc = 0.0
+            for m in range(k):
+                acc += factor[m, i] * factor[m, j]
+            gram[i, j] = acc
+    for j in range(r):
+        acc = gram[j, j]
+        for m in range(j):
+            acc -= gram[j, m] * gram[j, m]
+        root = math.sqrt(acc) if acc > 0 else 0.0
+        gram[j, j] = root
+        for i in range(j + 1, r):
+            acc = gram[i, j]
+            for m in range(j):
+                acc -= gram[i, m] * gram[j, m]
+            gram[i, j] = acc / root if root > 0 else 0.0
+    # x = L̃ H⁻¹ H⁻¹ L̃ᵀ b.
+    y = np.empty(r)
+    for i in range(r):
+        acc = 0.0
+        for m in range(k):
+            acc += factor[m, i] * b[m]
+        y[i] = acc
+    for _ in range(2):
+        _cholesky_solve(gram, y, r)
+    for m in range(k):
+        acc = 0.0
+        for i in range(r):
+            acc += factor[m, i] * y[i]
+        x[m] = acc
+    return rank
+
+
+@njit(cache=True, error_model="numpy")
+def _cholesky_solve(c, y, r):
+    """y ← (C Cᵀ)⁻¹ y for C the lower triangle of ``c``'s leading (r, r) block (a zero pivot
+    gives zero: its direction was below the rank tolerance)."""
+    for i in range(r):
+        acc = y[i]
+        for m in range(i):
+            acc -= c[i, m] * y[m]
+        y[i] = acc / c[i, i] if c[i, i] > 0 else 0.0
+    for i in range(r - 1, -1, -1):
+        acc = y[i]
+        for m in range(i + 1, r):
+            acc -= c[m, i] * y[m]
+        y[i] = acc / c[i, i] if c[i, i] > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def min_norm(a, b, x, symmetric, work):
+    """x ← A⁺ b for A (k, k); ``symmetric``: A is symmetric positive semidefinite; ``work``
+    (3, k, k) scratch. Returns the rank used."""
+    if symmetric:
+        return psd_min_norm(a, b, x, work[0], work[1])
+    k = a.shape[0]
+    normal = work[2]
+    rhs = np.empty(k)
+    for i in range(k):
+        acc = 0.0
+        for m in range(k):
+            acc += a[m, i] * b[m]
+        rhs[i] = acc
+        for j in range(i + 1):
+            acc = 0.0
+            for m in range(k):
+                acc += a[m, i] * a[m, j]
+            normal[i, j] = acc
+            normal[j, i] = acc
+    return psd_min_norm(normal, rhs, x, work[0], work[1])
