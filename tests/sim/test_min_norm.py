@@ -20,7 +20,9 @@ RTOL = 1e-8
 def solve(a, b, symmetric):
     k = len(b)
     x = np.full(k, np.nan)
-    rank = min_norm(np.ascontiguousarray(a), b.copy(), x, symmetric, np.empty((3, k, k)))
+    rank = min_norm(
+        np.ascontiguousarray(a), b.copy(), x, symmetric, np.full(3 * k * (k + 1), np.nan)
+    )
     return x, rank
 
 

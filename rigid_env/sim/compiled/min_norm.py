@@ -24,39 +24,39 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..contacts.warm_start import RANK_TOLERANCE
 from .cache import njit
 
 
 @njit(cache=True, error_model="numpy")
-def psd_min_norm(s, b, x, factor, gram):
-    """x ← S⁺ b for S (k, k) symmetric positive semidefinite (read only); ``factor`` (k, k) and
-    ``gram`` (k, k) scratch. Returns the rank used."""
+def psd_min_norm(s, b, x, work):
+    """x ← S⁺ b for S (k, k) symmetric positive semidefinite (read only); ``work`` scratch of
+    2k² + 2k floats. Returns the rank used."""
     k = s.shape[0]
-    remaining = np.empty(k)
-    chosen = np.zeros(k, np.bool_)
+    factor = work[: k * k].reshape((k, k))
+    gram = work[k * k : 2 * k * k].reshape((k, k))
+    remaining = work[2 * k * k : 2 * k * k + k]
+    y = work[2 * k * k + k : 2 * k * k + 2 * k]
     top = 0.0
     for i in range(k):
         remaining[i] = s[i, i]
         top = max(top, s[i, i])
     # Pivoted Cholesky, outer-product form, rows kept in place: column j of L̃ is zero on the
-    # rows pivoted before it.
+    # rows pivoted before it, which are marked by a remaining diagonal of −∞.
     rank = 0
     for j in range(k):
         p = -1
         best = RANK_TOLERANCE * top
         for i in range(k):
-            if not chosen[i] and remaining[i] > best:
+            if remaining[i] > best:
                 best = remaining[i]
                 p = i
         if p < 0:
             break
         root = math.sqrt(remaining[p])
-        chosen[p] = True
+        remaining[p] = -math.inf
         for i in range(k):
-            if chosen[i] and i != p:
+            if remaining[i] == -math.inf and i != p:
                 factor[i, j] = 0.0
                 continue
             acc = s[i, p]
@@ -65,7 +65,7 @@ def psd_min_norm(s, b, x, factor, gram):
             factor[i, j] = acc / root
         factor[p, j] = root
         for i in range(k):
-            if not chosen[i]:
+            if remaining[i] != -math.inf:
                 remaining[i] -= factor[i, j] * factor[i, j]
         rank += 1
     r = rank
@@ -88,7 +88,6 @@ def psd_min_norm(s, b, x, factor, gram):
                 acc -= gram[i, m] * gram[j, m]
             gram[i, j] = acc / root if root > 0 else 0.0
     # x = L̃ H⁻¹ H⁻¹ L̃ᵀ b.
-    y = np.empty(r)
     for i in range(r):
         acc = 0.0
         for m in range(k):
@@ -123,12 +122,13 @@ def _cholesky_solve(c, y, r):
 @njit(cache=True, error_model="numpy")
 def min_norm(a, b, x, symmetric, work):
     """x ← A⁺ b for A (k, k); ``symmetric``: A is symmetric positive semidefinite; ``work``
-    (3, k, k) scratch. Returns the rank used."""
+    scratch of at least 3k(k + 1) floats. Returns the rank used."""
     if symmetric:
-        return psd_min_norm(a, b, x, work[0], work[1])
+        return psd_min_norm(a, b, x, work)
     k = a.shape[0]
-    normal = work[2]
-    rhs = np.empty(k)
+    o = 2 * k * k + 2 * k  # past psd_min_norm's scratch
+    normal = work[o : o + k * k].reshape((k, k))
+    rhs = work[o + k * k : o + k * k + k]
     for i in range(k):
         acc = 0.0
         for m in range(k):
@@ -140,4 +140,4 @@ def min_norm(a, b, x, symmetric, work):
                 acc += a[m, i] * a[m, j]
             normal[i, j] = acc
             normal[j, i] = acc
-    return psd_min_norm(normal, rhs, x, work[0], work[1])
+    return psd_min_norm(normal, rhs, x, work)
