@@ -17,15 +17,20 @@ from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
+    I_C,
     I_K,
     I_MAX_IMPACTS,
     I_MAX_ITERATIONS,
+    O_EPS,
+    O_OWNER,
+    O_THRESHOLD,
     add_impulses,
     block,
     contact_data,
     contact_velocity,
     delassus,
     load_velocities,
+    offsets,
     scaled_velocity,
     store_velocities,
     unpack,
@@ -59,12 +64,12 @@ def restitute(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
+    if not _may_strike(e, st, d):
+        return
     ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
     c = owner.shape[0]
     dt = floats[F_DT]
     cs = st[CONTACT][e]
-    if not _may_strike(st, e, cs, owner, eps, thr, dt):
-        return
     tolerance = floats[F_TOLERANCE]
     max_iterations = ints[I_MAX_ITERATIONS]
     max_impacts = ints[I_MAX_IMPACTS]
@@ -222,26 +227,31 @@ def restitute(e, st, d):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _may_strike(st, e, cs, owner, eps, thr, dt):
+def _may_strike(e, st, d):
     """False when the impact loop's first pass (``restitute``: elapsed 0, nothing struck)
     would find no impact within the step: every contact is no impact contact (ε = 0, not
     closing, or its impact speed not above the threshold) or closes at or after Δt. Then the
     loop breaks at once and changes nothing but ``PATH_Q`` (read only after an event) and the
-    report's zeros, so the kernel returns before its scratch. The same operations in the same
-    order as the loop, reading the velocities in place: its verdict, bit for bit."""
+    report's zeros, so the kernel returns before its scratch and views. The same operations in
+    the same order as the loop, on the arrays in place: its verdict, bit for bit."""
+    ints, floats = d
+    o = offsets(ints)
+    dt = floats[F_DT]
+    contact = st[CONTACT]
     elapsed = 0.0
-    for i in range(owner.shape[0]):
-        b = owner[i]
-        vn0 = _normal_velocity(cs, i, st[V0], st[W0], e, b)
-        vn = _normal_velocity(cs, i, st[V], st[W], e, b)
+    for i in range(ints[I_C]):
+        b = ints[o[O_OWNER] + i]
+        vn0 = _normal_velocity(contact, st[V0], st[W0], e, i, b)
+        vn = _normal_velocity(contact, st[V], st[W], e, i, b)
         half = 0.5 * (vn - vn0)
-        g = cs[i, PATH_GAP]
+        g = contact[e, i, PATH_GAP]
         close = max(g, 0.0) / (-vn if vn < 0 else 1.0)
         at = min(elapsed + close, dt)
         rate = 2.0 * half / dt
         w = vn + rate * (at - 0.5 * dt)
         speed = max(-w, 0.0)
-        eligible = eps[i] > 0 and vn < 0 and speed > thr[i]
+        eps = floats[o[O_EPS] + i]
+        eligible = eps > 0 and vn < 0 and speed > floats[o[O_THRESHOLD] + i]
         # (not close >= Δt rather than close < Δt: a NaN goes the loop's way.)
         if eligible and not close >= dt - elapsed:
             return True
@@ -249,10 +259,10 @@ def _may_strike(st, e, cs, owner, eps, thr, dt):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _normal_velocity(cs, i, v, w, e, b):
-    """``contact_velocity(cs, i, b, u, 0)`` with u = (v, ω)[e, b]: the same operations."""
+def _normal_velocity(contact, v, w, e, i, b):
+    """``contact_velocity(contact[e], i, b, u, 0)`` with u = (v, ω)[e, b]: the same operations."""
     basis = (0.0, 0.0, 1.0)
-    arm = (cs[i, ARM], cs[i, ARM + 1], cs[i, ARM + 2])
+    arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
     rxb = cross(arm, basis)
     return (basis[0] * v[e, b, 0] + basis[1] * v[e, b, 1] + basis[2] * v[e, b, 2]) + (
         rxb[0] * w[e, b, 0] + rxb[1] * w[e, b, 1] + rxb[2] * w[e, b, 2]
