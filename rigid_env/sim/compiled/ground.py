@@ -38,38 +38,30 @@ def detect(e, st, d):
     k = keep[0]
     n_points = points.shape[1]
     contact = st[CONTACT]
-    # One scratch allocation per element (~40 ns each): per point its gap, 1.0 once chosen,
-    # and its arm (the chosen points' arms are not computed twice).
-    scratch = np.empty(5 * n_points)
-    gaps = scratch[:n_points]
-    chosen = scratch[n_points : 2 * n_points]
-    arm_x = scratch[2 * n_points : 3 * n_points]
-    arm_y = scratch[3 * n_points : 4 * n_points]
-    arm_z = scratch[4 * n_points :]
+    gaps = np.empty(n_points)
+    chosen = np.empty(n_points, np.bool_)
     for g in range(bodies.shape[0]):
         b = bodies[g]
-        z = st[X0][e, b, 2]
+        x = st[X0][e, b]
         q = (st[Q0][e, b, 0], st[Q0][e, b, 1], st[Q0][e, b, 2], st[Q0][e, b, 3])
         for i in range(n_points):
             arm = quat_rotate(q, (points[g, i, 0], points[g, i, 1], points[g, i, 2]))
-            arm_x[i] = arm[0] + 0.0
-            arm_y[i] = arm[1] + 0.0
-            arm_z[i] = arm[2] + foot[g]
-            gaps[i] = z + arm_z[i]
-            chosen[i] = 0.0
+            gaps[i] = x[2] + (arm[2] + foot[g])
+            chosen[i] = False
         for _ in range(k):
             best = -1
             for i in range(n_points):
-                if chosen[i] == 0.0 and (best < 0 or gaps[i] < gaps[best]):
+                if not chosen[i] and (best < 0 or gaps[i] < gaps[best]):
                     best = i
-            chosen[best] = 1.0
+            chosen[best] = True
         slot = g * k
         for i in range(n_points):
-            if chosen[i] == 0.0:
+            if not chosen[i]:
                 continue
-            contact[e, slot, ARM] = arm_x[i]
-            contact[e, slot, ARM + 1] = arm_y[i]
-            contact[e, slot, ARM + 2] = arm_z[i]
+            arm = quat_rotate(q, (points[g, i, 0], points[g, i, 1], points[g, i, 2]))
+            contact[e, slot, ARM] = arm[0] + 0.0
+            contact[e, slot, ARM + 1] = arm[1] + 0.0
+            contact[e, slot, ARM + 2] = arm[2] + foot[g]
             contact[e, slot, GAP] = gaps[i]
             contact[e, slot, BODY] = b
             slot += 1
