@@ -2,7 +2,7 @@
 ``separated`` and ``SeparateContacts`` with ``contacts.energy`` (see there for why).
 
 Both run for every engaged element, a resting box included, so they keep no scratch arrays
-and few views (an allocation costs ~40 ns per element, a view ~8 ns in reference counting):
+and few views (an allocation costs ~30 ns per element, a view ~8 ns in reference counting):
 per-body quantities (u₁, the path's orientation, the base position, the separated end
 position) are recomputed where they are used, by the same operations, and the data arrays are
 indexed in place (``contact_assembly.offsets``). Sums over bodies keep numpy's body order.

@@ -238,11 +238,12 @@ def _may_strike(e, st, d):
     o = offsets(ints)
     dt = floats[F_DT]
     contact = st[CONTACT]
+    v0, w0, v1, w1 = st[V0], st[W0], st[V], st[W]  # (once: each takes a reference count)
     elapsed = 0.0
     for i in range(ints[I_C]):
         b = ints[o[O_OWNER] + i]
-        vn0 = _normal_velocity(contact, st[V0], st[W0], e, i, b)
-        vn = _normal_velocity(contact, st[V], st[W], e, i, b)
+        vn0 = _normal_velocity(contact, v0, w0, e, i, b)
+        vn = _normal_velocity(contact, v1, w1, e, i, b)
         half = 0.5 * (vn - vn0)
         g = contact[e, i, PATH_GAP]
         close = max(g, 0.0) / (-vn if vn < 0 else 1.0)
