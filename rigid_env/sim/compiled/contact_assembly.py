@@ -23,7 +23,7 @@ from .registry import Kernel, register
 from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
 
 # Index of the integer parameters (``I``) and float parameters (``F``) in the data tuple.
-I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY = range(6)
+I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY, I_C, I_N, I_V = range(9)
 F_DT, F_TOLERANCE = range(2)
 # The Newton polish's settings sit at the end of the integer array (after the index tables).
 I_NEWTON_AFTER, I_NEWTON_STEPS = -2, -1
@@ -83,47 +83,79 @@ def contact_data(scene) -> tuple | None:
     return (ints, floats)
 
 
+# ``reshape`` gives these views through a call into numba's C helper, ~35 ns per view per
+# element; a C-ordered block's strides are known, so ``as_strided`` sets them directly.
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def block(flat, start, rows, cols):
+    """``flat[start : start + rows·cols]`` as a C-ordered (rows, cols) view."""
+    size = flat.itemsize
+    part = flat[start : start + rows * cols]
+    return np.lib.stride_tricks.as_strided(part, (rows, cols), (cols * size, size))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def block3(flat, start, a, b, c):
+    """``flat[start : start + a·b·c]`` as a C-ordered (a, b, c) view."""
+    size = flat.itemsize
+    part = flat[start : start + a * b * c]
+    return np.lib.stride_tricks.as_strided(part, (a, b, c), (b * c * size, c * size, size))
+
+
+# Where each block of ``contact_data``'s arrays starts (``offsets``' tuple).
+O_OWNER, O_SHAPED = 0, 1  # in ints
+O_MU, O_EPS, O_THRESHOLD, O_MASS, O_RIM, O_L, O_LINV, O_BODY, O_POINTS, O_FOOT = range(2, 12)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def offsets(ints):
+    """Start of each block of ``contact_data``'s arrays (``O_*``): owner and shaped in ints,
+    the rest in floats. Kernels on the common path index the two arrays in place with these:
+    each view ``unpack`` makes costs ~8 ns per element (its reference count)."""
+    g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
+    o_l = 5 + 3 * c + 2 * n
+    o_body = o_l + 18 * n
+    o_points = o_body + bodies.BODY_WIDTH * n
+    return (
+        9,
+        9 + c,
+        5,
+        5 + c,
+        5 + 2 * c,
+        5 + 3 * c,
+        5 + 3 * c + n,
+        o_l,
+        o_l + 9 * n,
+        o_body,
+        o_points,
+        o_points + 3 * g * v,
+    )
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def unpack(d):
     """The views of ``contact_data``'s two arrays: (ints, floats, mu, eps, threshold, owner,
     shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity)."""
     ints, floats = d
-    g, c, n, v = ints[I_GROUND], ints[6], ints[7], ints[8]
-    owner = ints[9 : 9 + c]
-    shaped = ints[9 + c : 9 + c + g]
-    o = 5
-    mu = floats[o : o + c]
-    eps = floats[o + c : o + 2 * c]
-    thr = floats[o + 2 * c : o + 3 * c]
-    o += 3 * c
-    mass = floats[o : o + n]
-    rim = floats[o + n : o + 2 * n]
-    o += 2 * n
-    lflat = floats[o : o + 9 * n].reshape((n, 9))
-    linv = floats[o + 9 * n : o + 18 * n].reshape((n, 9))
-    o += 18 * n
-    bd = floats[o : o + bodies.BODY_WIDTH * n].reshape((n, bodies.BODY_WIDTH))
-    o += bodies.BODY_WIDTH * n
-    points = floats[o : o + 3 * g * v].reshape((g, v, 3))
-    o += 3 * g * v
-    foot = floats[o : o + g]
-    gravity = floats[2:5]
+    g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
+    o = offsets(ints)
     return (
         ints,
         floats,
-        mu,
-        eps,
-        thr,
-        owner,
-        shaped,
-        mass,
-        rim,
-        lflat,
-        linv,
-        bd,
-        points,
-        foot,
-        gravity,
+        floats[o[O_MU] : o[O_MU] + c],
+        floats[o[O_EPS] : o[O_EPS] + c],
+        floats[o[O_THRESHOLD] : o[O_THRESHOLD] + c],
+        ints[o[O_OWNER] : o[O_OWNER] + c],
+        ints[o[O_SHAPED] : o[O_SHAPED] + g],
+        floats[o[O_MASS] : o[O_MASS] + n],
+        floats[o[O_RIM] : o[O_RIM] + n],
+        block(floats, o[O_L], n, 9),
+        block(floats, o[O_LINV], n, 9),
+        block(floats, o[O_BODY], n, bodies.BODY_WIDTH),
+        block3(floats, o[O_POINTS], g, v, 3),
+        floats[o[O_FOOT] : o[O_FOOT] + g],
+        floats[2:5],
     )
 
 
@@ -145,6 +177,22 @@ def scale_matrix(q, lflat, b):
         lflat[b, 8],
     )
     return matmul(quat_to_matrix(q), el)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def tuple9(flat, start):
+    """The 9 entries of ``flat`` from ``start`` (a row-major 3×3 stored in place)."""
+    return (
+        flat[start],
+        flat[start + 1],
+        flat[start + 2],
+        flat[start + 3],
+        flat[start + 4],
+        flat[start + 5],
+        flat[start + 6],
+        flat[start + 7],
+        flat[start + 8],
+    )
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -259,50 +307,52 @@ def scaled_velocity(st, e, mass, linv, u, z):
 
 @njit(cache=True, error_model="numpy")
 def assemble(e, st, d):
-    """``AssembleContacts``: engaged or not; the rows of J̃ and t₁ per contact."""
-    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat = unpack(d)[:10]
+    """``AssembleContacts``: engaged or not; the rows of J̃ and t₁ per contact. Indexes the
+    data and contact arrays in place (``offsets``): it runs for every element."""
+    ints, floats = d
+    o = offsets(ints)
     dt = floats[F_DT]
-    cs = st[CONTACT][e]
-    c = owner.shape[0]
+    contact = st[CONTACT]
+    v, w = st[V], st[W]
+    c = ints[I_C]
     engaged = False
     for i in range(c):
-        b = owner[i]
-        arm = (cs[i, ARM], cs[i, ARM + 1], cs[i, ARM + 2])
-        w = (st[W][e, b, 0], st[W][e, b, 1], st[W][e, b, 2])
-        spin = cross(w, arm)
-        vz = st[V][e, b, 2] + spin[2]
-        if cs[i, GAP] + dt * min(vz, 0.0) < 0:
+        b = ints[o[O_OWNER] + i]
+        arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
+        spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)
+        vz = v[e, b, 2] + spin[2]
+        if contact[e, i, GAP] + dt * min(vz, 0.0) < 0:
             engaged = True
     if not engaged:
         return
     st[REPORT][e, ENGAGED] = 1.0
     k = ints[I_K]
-    for g in range(shaped.shape[0]):
-        b = shaped[g]
+    for g in range(ints[I_GROUND]):
+        b = ints[o[O_SHAPED] + g]
         for i in range(3):
-            cs[g * k, U1 + i] = st[V][e, b, i]
-            cs[g * k, U1 + 3 + i] = st[W][e, b, i]
+            contact[e, g * k, U1 + i] = v[e, b, i]
+            contact[e, g * k, U1 + 3 + i] = w[e, b, i]
     for i in range(c):
-        b = owner[i]
-        arm = (cs[i, ARM], cs[i, ARM + 1], cs[i, ARM + 2])
-        w = (st[W][e, b, 0], st[W][e, b, 1], st[W][e, b, 2])
-        spin = cross(w, arm)
-        vx = st[V][e, b, 0] + spin[0]
-        vy = st[V][e, b, 1] + spin[1]
+        b = ints[o[O_OWNER] + i]
+        arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
+        spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)
+        vx = v[e, b, 0] + spin[0]
+        vy = v[e, b, 1] + spin[1]
         # tangents(): the sliding direction, else the perpendicular (1, 0, 0) of n = +z.
         speed = np.sqrt(vx * vx + vy * vy + 0.0)
         t1 = (vx / speed, vy / speed, 0.0) if speed > 1e-9 else (1.0, 0.0, 0.0)
         q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
-        scale = scale_matrix(q, lflat, b)
+        scale = matmul(quat_to_matrix(q), tuple9(floats, o[O_L] + 9 * b))  # scale_matrix
+        rim = floats[o[O_RIM] + b]
         for r in range(3):
             basis = basis_row(t1, r)
             ang = rotate_inverse(scale, cross(arm, basis))  # (r × b)ᵀ R L
             for j in range(3):
-                cs[i, JT + 6 * r + j] = basis[j] * rim[b]
-                cs[i, JT + 6 * r + 3 + j] = ang[j]
+                contact[e, i, JT + 6 * r + j] = basis[j] * rim
+                contact[e, i, JT + 6 * r + 3 + j] = ang[j]
         for j in range(3):
-            cs[i, T1 + j] = t1[j]
-        cs[i, PATH_GAP] = cs[i, GAP]
+            contact[e, i, T1 + j] = t1[j]
+        contact[e, i, PATH_GAP] = contact[e, i, GAP]
 
 
 @register("assemble_contacts")

@@ -17,20 +17,27 @@ from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
+    I_C,
     I_K,
     I_MAX_IMPACTS,
     I_MAX_ITERATIONS,
+    O_EPS,
+    O_OWNER,
+    O_THRESHOLD,
     add_impulses,
+    block,
     contact_data,
     contact_velocity,
     delassus,
     load_velocities,
+    offsets,
     scaled_velocity,
     store_velocities,
     unpack,
 )
 from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
 from .layout import (
+    ARM,
     CAPPED,
     CONTACT,
     DISPLACEMENT,
@@ -44,9 +51,11 @@ from .layout import (
     V0,
     W0,
     Q,
+    V,
+    W,
 )
 from .registry import Kernel, register
-from .rotation import quat_exp, quat_multiply
+from .rotation import cross, quat_exp, quat_multiply
 
 
 @njit(cache=True, error_model="numpy")
@@ -55,29 +64,25 @@ def restitute(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
+    if not _may_strike(e, st, d):
+        return
     ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
     c = owner.shape[0]
-    any_elastic = False
-    for i in range(c):
-        if eps[i] > 0:
-            any_elastic = True
-    if not any_elastic:
-        return
     dt = floats[F_DT]
+    cs = st[CONTACT][e]
     tolerance = floats[F_TOLERANCE]
     max_iterations = ints[I_MAX_ITERATIONS]
     max_impacts = ints[I_MAX_IMPACTS]
-    cs = st[CONTACT][e]
     disp = st[DISPLACEMENT]
     q = st[Q]
     n = st[0].shape[1]
     # One scratch allocation of floats and one of flags, carved into views.
     buf = np.empty(30 * n + 6 * c + c * c + WORK_PER_CONTACT * c)
-    u = buf[: 6 * n].reshape((n, 6))
-    u0 = buf[6 * n : 12 * n].reshape((n, 6))
-    z = buf[12 * n : 18 * n].reshape((n, 6))
-    dz = buf[18 * n : 24 * n].reshape((n, 6))
-    du = buf[24 * n : 30 * n].reshape((n, 6))
+    u = block(buf, 0, n, 6)
+    u0 = block(buf, 6 * n, n, 6)
+    z = block(buf, 12 * n, n, 6)
+    dz = block(buf, 18 * n, n, 6)
+    du = block(buf, 24 * n, n, 6)
     o = 30 * n
     half = buf[o : o + c]
     vn = buf[o + c : o + 2 * c]
@@ -86,7 +91,7 @@ def restitute(e, st, d):
     lam = buf[o + 4 * c : o + 5 * c]
     none = buf[o + 5 * c : o + 6 * c]
     o += 6 * c
-    a_nn = buf[o : o + c * c].reshape((c, c))
+    a_nn = block(buf, o, c, c)
     work = buf[o + c * c :]
     flags = np.zeros(3 * c, np.bool_)
     struck, eligible, hit = flags[:c], flags[c : 2 * c], flags[2 * c :]
@@ -219,6 +224,50 @@ def restitute(e, st, d):
     report[e, ELAPSED] = elapsed
     if held:
         store_velocities(st, e, u)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _may_strike(e, st, d):
+    """False when the impact loop's first pass (``restitute``: elapsed 0, nothing struck)
+    would find no impact within the step: every contact is no impact contact (ε = 0, not
+    closing, or its impact speed not above the threshold) or closes at or after Δt. Then the
+    loop breaks at once and changes nothing but ``PATH_Q`` (read only after an event) and the
+    report's zeros, so the kernel returns before its scratch and views. The same operations in
+    the same order as the loop, on the arrays in place: its verdict, bit for bit."""
+    ints, floats = d
+    o = offsets(ints)
+    dt = floats[F_DT]
+    contact = st[CONTACT]
+    v0, w0, v1, w1 = st[V0], st[W0], st[V], st[W]  # (once: each takes a reference count)
+    elapsed = 0.0
+    for i in range(ints[I_C]):
+        b = ints[o[O_OWNER] + i]
+        vn0 = _normal_velocity(contact, v0, w0, e, i, b)
+        vn = _normal_velocity(contact, v1, w1, e, i, b)
+        half = 0.5 * (vn - vn0)
+        g = contact[e, i, PATH_GAP]
+        close = max(g, 0.0) / (-vn if vn < 0 else 1.0)
+        at = min(elapsed + close, dt)
+        rate = 2.0 * half / dt
+        w = vn + rate * (at - 0.5 * dt)
+        speed = max(-w, 0.0)
+        eps = floats[o[O_EPS] + i]
+        eligible = eps > 0 and vn < 0 and speed > floats[o[O_THRESHOLD] + i]
+        # (not close >= Δt rather than close < Δt: a NaN goes the loop's way.)
+        if eligible and not close >= dt - elapsed:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _normal_velocity(contact, v, w, e, i, b):
+    """``contact_velocity(contact[e], i, b, u, 0)`` with u = (v, ω)[e, b]: the same operations."""
+    basis = (0.0, 0.0, 1.0)
+    arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
+    rxb = cross(arm, basis)
+    return (basis[0] * v[e, b, 0] + basis[1] * v[e, b, 1] + basis[2] * v[e, b, 2]) + (
+        rxb[0] * w[e, b, 0] + rxb[1] * w[e, b, 1] + rxb[2] * w[e, b, 2]
+    )
 
 
 @njit(cache=True, error_model="numpy")
