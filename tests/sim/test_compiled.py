@@ -231,7 +231,7 @@ def test_composition_follows_the_stage_tuple():
     a = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled", **ALL_FORCES)
     b = sim.Scene(lopsided_body(), 0.02, integrator="euler", backend="compiled", **ALL_FORCES)
     assert a._driver.module is b._driver.module
-    body = a._driver.source.split("def element")[1].split("\n\n")[0]
+    body = a._driver.source.split("def step(")[1]
     calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, data[" in line]
     assert calls == ["euler_velocity", "euler_position"]
     forces = a._driver.source.split("def wrench")[1].split("return")[0]
@@ -280,7 +280,7 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
     assert len(drv.data) < len(drv.kernels)
     calls = [
         line.strip()
-        for line in drv.source.split("def element")[1].splitlines()
+        for line in drv.source.split("def step(")[1].splitlines()
         if "(e, st, data[" in line
     ]
     assert len(calls) == len(drv.kernels)
