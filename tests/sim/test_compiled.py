@@ -312,3 +312,18 @@ def test_a_report_read_late_is_the_last_steps_report(monkeypatch):
                 assert np.array_equal(getattr(got, key), value), key
             seen.add((want.engaged, want.impacts > 0))
     assert (0, False) in seen and any(engaged for engaged, _ in seen)  # before and on the ground
+
+
+@pytest.mark.parametrize("integrator", ["splitting", "splitting4"])
+def test_splitting_takes_its_damped_template_only_with_velocity_dependent_forces(integrator):
+    """Without velocity-dependent forces the plain template closes with an explicit half kick
+    (and calls nothing that can raise: ``integrators.INLINE``); with damping the scene must get
+    the ``_damped`` one, whose implicit half kick the numpy twin takes (its match with numpy:
+    ``test_every_integrator_matches_numpy``)."""
+
+    def kernels(**terms):
+        scene = sim.Scene(lopsided_body(), 0.01, integrator=integrator, backend="compiled", **terms)
+        return [k.name for k in scene._driver.kernels]
+
+    assert kernels(gravity=(0.0, 0.0, -9.81)) == [integrator]
+    assert kernels(linear_damping=0.3, angular_damping=0.5) == [integrator + "_damped"]
