@@ -80,9 +80,9 @@ TEMPLATES = (
     "implicit_position",
 )
 # Templates the driver inlines into their callers (numba IR) although they are not stages: a
-# call left in the element loop keeps numba's reference-count pruning from removing the
-# incref/decref pairs of the step tuple around it (an atomic add each, ~2/3 of a free body's
-# splitting step measured).
+# call that can raise (numba's status return) left in the element loop keeps numba's
+# reference-count pruning from removing the step tuple's incref/decref pairs around it (see
+# steps.py for what they cost).
 INLINE = ("strang_drift", "strang")
 
 

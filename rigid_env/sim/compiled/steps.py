@@ -15,12 +15,13 @@ from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, STEP_TUPLE_SIZE, V0, W0, 
 BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
 
-# Written for numba's reference-count pruning: the step tuple's arrays are increfed where an
-# inlined function binds them and decrefed where its body ends, an atomic add each (~1/3 of a
-# free body's step measured), and the pruner removes such a pair only across a short branch-free
-# stretch of code. So ``begin`` has no early return from its loop and ``finite`` no branch, and
-# ``finite`` indexes ``st`` in place instead of binding names (measured: either way the pairs
-# stayed).
+# Written for numba's reference-count pruning. Where an inlined function binds the step
+# tuple's arrays they are increfed, and decrefed where its body ends: an atomic add each, about
+# half of Reorient's compiled step (a free body, 2 splitting steps per call: 0.30 -> 0.14 µs per
+# element without them, measured on this machine). numba's pruner removes such a pair only
+# across a short stretch of code with no early exit and no call that can raise. So ``begin``
+# has no early return from its loop, ``finite`` no branch, and ``finite`` indexes ``st`` in
+# place instead of binding names (with names, measured, the pairs stayed).
 
 
 @njit(cache=True, error_model="numpy", inline="always")
