@@ -231,7 +231,7 @@ def test_composition_follows_the_stage_tuple():
     a = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled", **ALL_FORCES)
     b = sim.Scene(lopsided_body(), 0.02, integrator="euler", backend="compiled", **ALL_FORCES)
     assert a._driver.module is b._driver.module
-    body = a._driver.source.split("def element")[1].split("\n\n")[0]
+    body = a._driver.source.split("def step(")[1]
     calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, data[" in line]
     assert calls == ["euler_velocity", "euler_position"]
     forces = a._driver.source.split("def wrench")[1].split("return")[0]
@@ -282,7 +282,7 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
     assert len(drv.data) < len(drv.kernels)
     calls = [
         line.strip()
-        for line in drv.source.split("def element")[1].splitlines()
+        for line in drv.source.split("def step(")[1].splitlines()
         if "(e, st, data[" in line
     ]
     assert len(calls) == len(drv.kernels)
@@ -314,3 +314,18 @@ def test_a_report_read_late_is_the_last_steps_report(monkeypatch):
                 assert np.array_equal(getattr(got, key), value), key
             seen.add((want.engaged, want.impacts > 0))
     assert (0, False) in seen and any(engaged for engaged, _ in seen)  # before and on the ground
+
+
+@pytest.mark.parametrize("integrator", ["splitting", "splitting4"])
+def test_splitting_takes_its_damped_template_only_with_velocity_dependent_forces(integrator):
+    """Without velocity-dependent forces the plain template closes with an explicit half kick
+    (and calls nothing that can raise: ``integrators.INLINE``); with damping the scene must get
+    the ``_damped`` one, whose implicit half kick the numpy twin takes (its match with numpy:
+    ``test_every_integrator_matches_numpy``)."""
+
+    def kernels(**terms):
+        scene = sim.Scene(lopsided_body(), 0.01, integrator=integrator, backend="compiled", **terms)
+        return [k.name for k in scene._driver.kernels]
+
+    assert kernels(gravity=(0.0, 0.0, -9.81)) == [integrator]
+    assert kernels(linear_damping=0.3, angular_damping=0.5) == [integrator + "_damped"]

@@ -89,7 +89,7 @@ return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_
 add the module to ``backend.KERNEL_MODULES``.
 
 **The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
-source of a small module, ``element(e, st, data, steps, total)`` = ``steps.begin`` (working
+source of a small module whose loop over the batch runs, per element, ``steps.begin`` (working
 state, zeroed scratch), each kernel in stage order with its data (equal data tuples are passed
 once: ``driver.share``), then ``steps.finite``,
 ``steps`` times (``Scene.step(..., steps=k)``; between two, ``steps.carry`` makes the result the
@@ -99,10 +99,11 @@ summary, as flags, counts per step and largest values are); ``step(x0, q0, v0, w
 force, torque, body, report, data, slots, steps)`` allocates the scratch (displacement, contact
 slots, the start copies of several steps), builds ``st`` and loops over the batch, counting the
 elements with a bad quaternion, a non-finite result and a capped solve (the scene builds its
-report dict from the columns when read, at once when a solve was capped). ``element``,
-``steps.begin``, ``finite``, ``carry`` and the integrator stage templates are inlined into
-their caller: a call passes each array of ``st`` field by field, ~30-100 ns per call per
-element. ``step`` runs ``nogil``
+report dict from the columns when read, at once when a solve was capped). ``steps.begin``,
+``finite``, ``carry``, the integrator stage templates and the helpers a template module lists
+in ``INLINE`` are inlined into their caller: a call passes each array of ``st`` field by
+field, ~30-100 ns per call per element, and one that can raise keeps numba from pruning the
+reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). ``step`` runs ``nogil``
 (with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
 its parallel loop bodies accept no tuples of arrays). It

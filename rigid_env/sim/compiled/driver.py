@@ -117,32 +117,16 @@ def generate(
     stages = {k.name for k in kernels if k.template}
     for module in templates:
         mod = importlib.import_module(module)
+        inline = stages.union(getattr(mod, "INLINE", ()))  # helpers the module wants inlined
         for name in mod.TEMPLATES:
             src = textwrap.dedent(inspect.getsource(getattr(mod, name)))
-            lines += ["", "", _JIT_INLINE if name in stages else _JIT, src.rstrip()]
-    # ``steps`` steps per element; between two, ``carry`` makes the result the next start.
-    lines += ["", "", _JIT_INLINE, "def element(e, st, data, steps, total):"]
-    lines += [
-        "    for k in range(steps):",
-        "        if k > 0:",
-        "            carry(e, st, total)",
-        f"        if not begin(e, st, {ORIENTATION_TOLERANCE!r}):",
-        "            return 1",
-    ]
-    for i, k in enumerate(kernels):
-        call = k.name if k.template else f"stage_{i}"
-        lines.append(f"        {call}(e, st, data[{index[i]}])")
-    lines += [
-        "        if not finite(e, st):",
-        "            return 2",
-        "    if steps > 1:",
-        "        fold(e, st, total)",
-        "    return 0",
-    ]
+            lines += ["", "", _JIT_INLINE if name in inline else _JIT, src.rstrip()]
     # The scratch (displacement, contact slots, the running report maximum, the start copies
     # that ``carry`` overwrites) is allocated here, per call: an allocation costs ~0.03 µs in
     # compiled code against ~0.2-1 µs from Python plus the unboxing of each array passed in;
-    # per call, so concurrent steps of one scene (threads) cannot mix.
+    # per call, so concurrent steps of one scene (threads) cannot mix. An element's steps are
+    # written into the loop, not an inlined function: binding ``st``, ``data`` and ``total`` as
+    # its arguments costs each element an atomic incref and decref per array (see steps.py).
     lines += [
         "",
         "",
@@ -160,7 +144,24 @@ def generate(
         "    diverged = 0",
         "    capped = 0",
         "    for e in range(size):",
-        "        verdict = element(e, st, data, steps, total)",
+        "        # element e: its steps; between two, carry makes the result the next start",
+        "        verdict = 0",
+        "        for k in range(steps):",
+        "            if k > 0:",
+        "                carry(e, st, total)",
+        f"            if not begin(e, st, {ORIENTATION_TOLERANCE!r}):",
+        "                verdict = 1",
+        "                break",
+    ]
+    for i, k in enumerate(kernels):
+        call = k.name if k.template else f"stage_{i}"
+        lines.append(f"            {call}(e, st, data[{index[i]}])")
+    lines += [
+        "            if not finite(e, st):",
+        "                verdict = 2",
+        "                break",
+        "        if verdict == 0 and steps > 1:",
+        "            fold(e, st, total)",
         "        if verdict == 1:",
         "            bad_orientation += 1",
         "        elif verdict == 2:",

@@ -66,15 +66,24 @@ TEMPLATES = (
     "euler_quat_position",
     "rk4_derivative",
     "rk4",
+    "strang_drift",
     "strang",
+    "strang_damped",
     "implicit_half_kick",
     "splitting",
     "splitting4",
+    "splitting_damped",
+    "splitting4_damped",
     "implicit_gyro_velocity",
     "implicit_gyro_position",
     "implicit_velocity",
     "implicit_position",
 )
+# Templates the driver inlines into their callers (numba IR) although they are not stages: a
+# call that can raise (numba's status return) left in the element loop keeps numba's
+# reference-count pruning from removing the step tuple's incref/decref pairs around it (see
+# steps.py for what they cost).
+INLINE = ("strang_drift", "strang")
 
 
 # --- shared pieces ----------------------------------------------------------------------------
@@ -343,9 +352,11 @@ def _axis_flow(pa, pj, pk, ra, rj, rk, r3, phi):
     return pj, pk, ra, rj, rk, r3
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def free_rotation(inv, qp, pi, h):
-    """``splitting.free_rotation``: axes (0, ½)(1, ½)(2, 1)(1, ½)(0, ½), then renormalise."""
+    """``splitting.free_rotation``: axes (0, ½)(1, ½)(2, 1)(1, ½)(0, ½), then renormalise.
+    Inlined: a call can raise (numba's status), which keeps the step tuple's reference counts
+    in the element loop (see ``INLINE``)."""
     p0, p1, p2 = pi
     r0, r1, r2, r3 = qp
     phi = (0.5 * h) * (inv[0] * p0)
@@ -362,11 +373,11 @@ def free_rotation(inv, qp, pi, h):
     return (r0 / n, r1 / n, r2 / n, r3 / n), (p0, p1, p2)
 
 
-def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
-    """``splitting._strang``: half kick, drift with the exact free rotation, half kick."""
+def strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
+    """``splitting._strang`` up to its closing half kick: half kick, then the drift with the
+    exact free rotation."""
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
-    im = bd[b, INV_MASS]
-    v = kick(v, 0.5 * dt, im, f)
+    v = kick(v, 0.5 * dt, bd[b, INV_MASS], f)
     x = axpy(x, dt, v)
     principal = bd[b, PRINCIPAL] != 0.0
     qp = quat_multiply(q, vec4(bd, b, PRINCIPAL_QUAT)) if principal else q
@@ -379,12 +390,22 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
     qp, pi = free_rotation(inv, qp, pi, dt)
     w = quat_rotate(qp, (pi[0] * inv[0], pi[1] * inv[1], pi[2] * inv[2]))
     q = quat_multiply(qp, vec4(bd, b, PRINCIPAL_CONJ)) if principal else qp
-    if velocity_dependent:
-        v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
-        return x, q, v, w
+    return x, q, v, w
+
+
+def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
+    """``splitting._strang`` without velocity-dependent forces: drift, explicit half kick."""
+    x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
-    v = kick(v, 0.5 * dt, im, f)
+    v = kick(v, 0.5 * dt, bd[b, INV_MASS], f)
     w = axpy(w, 0.5 * dt, apply_inverse_inertia(bd, b, quat_to_matrix(q), t))
+    return x, q, v, w
+
+
+def strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
+    """``splitting._strang`` with velocity-dependent forces: drift, implicit half kick."""
+    x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
+    v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
     return x, q, v, w
 
 
@@ -417,26 +438,52 @@ def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
 
 
 def splitting(e, st, d):
-    """``integrators.splitting.integrate2``: Strang splitting, second order."""
+    """``integrators.splitting.integrate2``: Strang splitting, second order. Without
+    velocity-dependent forces; ``splitting_damped`` is the scene's stage with them
+    (``_integrator_stage``), so this one calls nothing that can raise (see ``INLINE``)."""
     (bd, prm, sd), fds = d
-    dt, vdep = prm[0], prm[1] != 0.0
+    dt = prm[0]
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         tb = load_body_torque(st, e, b)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, vdep)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
         store(st, e, b, x, q, v, w)
 
 
 def splitting4(e, st, d):
     """``integrators.splitting.integrate4``: Yoshida's triple jump of ``splitting``."""
     (bd, prm, sd), fds = d
-    dt, vdep = prm[0], prm[1] != 0.0
+    dt = prm[0]
     for b in range(st[X].shape[1]):
         x, q, v, w, fa, ta = load(st, e, b)
         tb = load_body_torque(st, e, b)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt, vdep)
-        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt, vdep)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt)
+        x, q, v, w = strang(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt)
+        store(st, e, b, x, q, v, w)
+
+
+def splitting_damped(e, st, d):
+    """``splitting`` with velocity-dependent forces (the implicit closing half kick)."""
+    (bd, prm, sd), fds = d
+    dt = prm[0]
+    for b in range(st[X].shape[1]):
+        x, q, v, w, fa, ta = load(st, e, b)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
+        store(st, e, b, x, q, v, w)
+
+
+def splitting4_damped(e, st, d):
+    """``splitting4`` with velocity-dependent forces."""
+    (bd, prm, sd), fds = d
+    dt = prm[0]
+    for b in range(st[X].shape[1]):
+        x, q, v, w, fa, ta = load(st, e, b)
+        tb = load_body_torque(st, e, b)
+        x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt)
+        x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt)
+        x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt)
         store(st, e, b, x, q, v, w)
 
 
@@ -663,8 +710,14 @@ def _integrator_stage(suffix: str):
         if module is None:
             return None
         name = scene.integrator + suffix
-        if name not in importlib.import_module(module).TEMPLATES:
+        templates = importlib.import_module(module).TEMPLATES
+        if name not in templates:
             return None
+        # A template may come in a ``_damped`` variant for velocity-dependent forces, so the
+        # plain one calls nothing that can raise (``INLINE``).
+        damped = name + "_damped"
+        if damped in templates and any(term.velocity_dependent for term in scene.forces):
+            name = damped
         return Kernel(module, name, integrator_data(scene), template=True)
 
     return factory
