@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RIDGE
+from . import cholesky
 from .cache import njit
 from .contact_gauss_seidel import gauss_seidel, velocity_scale
 
@@ -107,28 +108,8 @@ def least_squares_step(g, f, normal, step):
         for k in range(n):
             acc += g[k, i] * f[k]
         step[i] = -acc
-    # L Lᵀ in the lower triangle of ``normal``.
-    for j in range(n):
-        d = normal[j, j]
-        for k in range(j):
-            d -= normal[j, k] * normal[j, k]
-        d = math.sqrt(d) if d > 0 else 1e-300
-        normal[j, j] = d
-        for i in range(j + 1, n):
-            acc = normal[i, j]
-            for k in range(j):
-                acc -= normal[i, k] * normal[j, k]
-            normal[i, j] = acc / d
-    for i in range(n):  # L y = rhs
-        acc = step[i]
-        for k in range(i):
-            acc -= normal[i, k] * step[k]
-        step[i] = acc / normal[i, i]
-    for i in range(n - 1, -1, -1):  # Lᵀ Δ = y
-        acc = step[i]
-        for k in range(i + 1, n):
-            acc -= normal[k, i] * step[k]
-        step[i] = acc / normal[i, i]
+    cholesky.factor(normal, n)
+    cholesky.solve(normal, step, n)
 
 
 @njit(cache=True, error_model="numpy")

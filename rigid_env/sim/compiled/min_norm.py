@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 
 from ..contacts.warm_start import RANK_TOLERANCE
+from . import cholesky
 from .cache import njit
 
 
@@ -69,24 +70,15 @@ def psd_min_norm(s, b, x, work):
                 remaining[i] -= factor[i, j] * factor[i, j]
         rank += 1
     r = rank
-    # H = L̃ᵀ L̃ (r, r), symmetric positive definite, factored H = C Cᵀ in place.
+    # H = L̃ᵀ L̃ (r, r): positive definite, as L̃'s columns are independent (each pivot was
+    # above the rank tolerance).
     for i in range(r):
         for j in range(i + 1):
             acc = 0.0
             for m in range(k):
                 acc += factor[m, i] * factor[m, j]
             gram[i, j] = acc
-    for j in range(r):
-        acc = gram[j, j]
-        for m in range(j):
-            acc -= gram[j, m] * gram[j, m]
-        root = math.sqrt(acc) if acc > 0 else 0.0
-        gram[j, j] = root
-        for i in range(j + 1, r):
-            acc = gram[i, j]
-            for m in range(j):
-                acc -= gram[i, m] * gram[j, m]
-            gram[i, j] = acc / root if root > 0 else 0.0
+    cholesky.factor(gram, r)
     # x = L̃ H⁻¹ H⁻¹ L̃ᵀ b.
     for i in range(r):
         acc = 0.0
@@ -94,29 +86,13 @@ def psd_min_norm(s, b, x, work):
             acc += factor[m, i] * b[m]
         y[i] = acc
     for _ in range(2):
-        _cholesky_solve(gram, y, r)
+        cholesky.solve(gram, y, r)
     for m in range(k):
         acc = 0.0
         for i in range(r):
             acc += factor[m, i] * y[i]
         x[m] = acc
     return rank
-
-
-@njit(cache=True, error_model="numpy")
-def _cholesky_solve(c, y, r):
-    """y ← (C Cᵀ)⁻¹ y for C the lower triangle of ``c``'s leading (r, r) block (a zero pivot
-    gives zero: its direction was below the rank tolerance)."""
-    for i in range(r):
-        acc = y[i]
-        for m in range(i):
-            acc -= c[i, m] * y[m]
-        y[i] = acc / c[i, i] if c[i, i] > 0 else 0.0
-    for i in range(r - 1, -1, -1):
-        acc = y[i]
-        for m in range(i + 1, r):
-            acc -= c[m, i] * y[m]
-        y[i] = acc / c[i, i] if c[i, i] > 0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
