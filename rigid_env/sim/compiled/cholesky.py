@@ -1,12 +1,25 @@
-"""In-place Cholesky factorisation and solve of a small symmetric positive definite system
-(Golub & Van Loan, "Matrix Computations", 4th ed. 2013, Algorithm 4.2.1): the Newton polish's
-regularised normal equations and the minimum-norm start's Gram matrix."""
+"""Normal equations of small dense systems: the Gram matrix AᵀA and the in-place Cholesky
+factorisation and solve of a symmetric positive definite matrix (Golub & Van Loan, "Matrix
+Computations", 4th ed. 2013, Algorithm 4.2.1), for the Newton polish's regularised normal
+equations and the minimum-norm start."""
 
 from __future__ import annotations
 
 import math
 
 from .cache import njit
+
+
+@njit(cache=True, error_model="numpy")
+def gram(a, rows, cols, out):
+    """The lower triangle of AᵀA (cols, cols) into ``out``, A the leading (rows, cols) block of
+    ``a``."""
+    for i in range(cols):
+        for j in range(i + 1):
+            acc = 0.0
+            for m in range(rows):
+                acc += a[m, i] * a[m, j]
+            out[i, j] = acc
 
 
 @njit(cache=True, error_model="numpy")

@@ -93,13 +93,9 @@ def least_squares_step(g, f, normal, step):
     """Δ = −(GᵀG + δ I)⁻¹ GᵀF into ``step`` (``newton.RIDGE``), by Cholesky (Golub & Van Loan,
     "Matrix Computations", 4th ed. 2013, Algorithm 4.2.1); ``normal`` (n, n) scratch."""
     n = f.shape[0]
+    cholesky.gram(g, n, n, normal)
     peak = 0.0
     for i in range(n):
-        for j in range(i + 1):
-            acc = 0.0
-            for k in range(n):
-                acc += g[k, i] * g[k, j]
-            normal[i, j] = acc
         peak = max(peak, normal[i, i])
     ridge = RIDGE * peak
     for i in range(n):

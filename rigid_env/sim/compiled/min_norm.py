@@ -72,12 +72,7 @@ def psd_min_norm(s, b, x, work):
     r = rank
     # H = L̃ᵀ L̃ (r, r): positive definite, as L̃'s columns are independent (each pivot was
     # above the rank tolerance).
-    for i in range(r):
-        for j in range(i + 1):
-            acc = 0.0
-            for m in range(k):
-                acc += factor[m, i] * factor[m, j]
-            gram[i, j] = acc
+    cholesky.gram(factor, k, r, gram)
     cholesky.factor(gram, r)
     # x = L̃ H⁻¹ H⁻¹ L̃ᵀ b.
     for i in range(r):
@@ -105,15 +100,12 @@ def min_norm(a, b, x, symmetric, work):
     o = 2 * k * k + 2 * k  # past psd_min_norm's scratch
     normal = work[o : o + k * k].reshape((k, k))
     rhs = work[o + k * k : o + k * k + k]
+    cholesky.gram(a, k, k, normal)
     for i in range(k):
         acc = 0.0
         for m in range(k):
             acc += a[m, i] * b[m]
         rhs[i] = acc
-        for j in range(i + 1):
-            acc = 0.0
-            for m in range(k):
-                acc += a[m, i] * a[m, j]
-            normal[i, j] = acc
-            normal[j, i] = acc
+        for j in range(i):
+            normal[j, i] = normal[i, j]  # psd_min_norm reads both triangles
     return psd_min_norm(normal, rhs, x, work)
