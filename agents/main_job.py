@@ -275,7 +275,7 @@ def _one_env(
     summary = {
         **table_document(env_id, rows, args.episodes, args.eval_seed),
         "algo": algo,
-        "backend": _backend(env_id),
+        "backend": _backend(env_id, run_folder.read(folder).get("env_kwargs", {})),
         "throughput": throughput,
         "train_seconds": round(train_seconds, 1),
         "wall_seconds": round(time.perf_counter() - start, 1),
@@ -285,14 +285,18 @@ def _one_env(
     return None
 
 
-def _backend(env_id: str) -> str:
-    """Which physics the figures were measured on: the scene's step implementation."""
+def _backend(env_id: str, env_kwargs: dict) -> str:
+    """Which physics the training ran on: the scene's step implementation, built with the
+    training's env arguments (``"compiled-threads"`` when its config splits the batch)."""
     from .rollout import make_vec
 
-    env: Any = make_vec(env_id, 1)  # a rigid_env vector env: it has a task with a scene
-    backend = getattr(env.unwrapped.task.scene, "backend", "numpy")
+    env: Any = make_vec(env_id, 1, **env_kwargs)  # a rigid_env vector env: a task with a scene
+    task = env.unwrapped.task
+    backend = str(getattr(task.scene, "backend", "numpy"))
+    if backend == "compiled" and getattr(task.config, "backend", None) == "compiled-threads":
+        backend = "compiled-threads"
     env.close()
-    return str(backend)
+    return backend
 
 
 def _interrupted(out: Path, steps: int) -> int:

@@ -137,6 +137,7 @@ m g z, J), the reward terms ``reward_*`` (0 at a reset) and ``is_success`` (``bo
 | ``terminate_on_success`` | ``True``         | end the episode at success                                |
 | ``face_weight``, ``spin_weight``, ``bounce_weight``, ``action_weight``, ``success_bonus`` | 1, 0.05, 0.5, 0.01, 10 | reward terms (table above) |
 | ``spin_scale``           | ``None``         | observation scale of Ω, rad/s; ``None``: ``spin_range`` high (at least 1 rad/s) |
+| ``backend``              | ``None``         | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
 | ``render_mode``          | ``None``         | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 
 Why these defaults: the box is the simulator's landing scene. A fall of 1–2 m takes 0.45–0.64 s
@@ -329,6 +330,7 @@ class BoxLandingTask(HoldTask):
             integrator=cfg.integrator,
             gravity=(0.0, 0.0, -GRAVITY),
             ground=sim.Ground(restitution=cfg.restitution, friction=cfg.friction),
+            backend=cfg.backend,
         )
 
     # --- resets ---------------------------------------------------------------------------------

@@ -80,6 +80,7 @@ class HoldTaskConfig:
     action_weight: float = 0.01
     success_bonus: float = 10.0
     spin_scale: float | None = None
+    backend: str | None = None
     rigid_body: sim.Body = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -113,6 +114,8 @@ class HoldTaskConfig:
             put(name, nonnegative_scalar(getattr(self, name), name))
         if self.spin_scale is not None:
             put("spin_scale", positive_scalar(self.spin_scale, "spin_scale"))
+        if self.backend is not None:
+            put("backend", choice(self.backend, "backend", sim.BACKENDS))
 
     @property
     def observed_spin_scale(self) -> float:

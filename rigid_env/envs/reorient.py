@@ -122,6 +122,7 @@ terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
 | ``terminate_on_success`` | ``True``           | end the episode at success                                |
 | ``angle_weight``, ``spin_weight``, ``action_weight``, ``success_bonus`` | 1, 0.1, 0.01, 10 | reward terms (table above) |
 | ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high, at least 1 rad/s |
+| ``backend``           | ``None``              | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
 | ``render_mode``       | ``None``              | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 
 The arguments other than ``render_mode`` form a :class:`ReorientConfig` (a frozen dataclass,
@@ -229,7 +230,8 @@ class ReorientTask(HoldTask):
 
     def build_scene(self) -> sim.Scene:
         cfg = self.config
-        return sim.Scene(self.body, cfg.dt, integrator=cfg.integrator)  # free body only
+        # a free body only: no gravity, ground or springs
+        return sim.Scene(self.body, cfg.dt, integrator=cfg.integrator, backend=cfg.backend)
 
     # --- resets ---------------------------------------------------------------------------------
 
