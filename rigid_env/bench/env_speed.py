@@ -2,6 +2,7 @@
 
     python -m rigid_env.bench.env_speed RigidEnv/BoxLanding-v0 --num-envs 1024 --seconds 10
     python -m rigid_env.bench.env_speed --seconds 5      # both RigidEnv envs beside Hopper-v5
+    python -m rigid_env.bench.env_speed --backend compiled-threads   # the batch over the cores
 
 Every env runs random actions (with its resets) for about ``--seconds`` per measurement. The
 simulator's ``Scene.step`` is timed by its public per-stage timer (``scene.timer =
@@ -26,7 +27,7 @@ import numpy as np
 
 import rigid_env  # noqa: F401  (registers the ids)
 from rigid_env import cli
-from rigid_env.sim import StageTimer
+from rigid_env.sim import BACKENDS, StageTimer
 
 PROG = "python -m rigid_env.bench.env_speed"
 MIN_SECONDS = 0.01  # long enough for at least one step to be timed
@@ -140,17 +141,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--peer", default=PEER, help=f"single env measured beside, default {PEER}; none: skip"
     )
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        help="the RigidEnv envs' backend argument (default: RIGID_ENV_BACKEND, else auto)",
+    )
     args = parser.parse_args(argv)
     if args.seconds < MIN_SECONDS:
         raise cli.UsageError(f"--seconds must be at least {MIN_SECONDS}, got {args.seconds}")
 
     singles = {}
+    kwargs = {} if args.backend is None else {"backend": args.backend}
     for env_id in args.env_id or RIGID_ENVS:
         print(env_id)
-        single = singles[env_id] = run(gym.make(env_id), seconds=args.seconds, seed=args.seed)
+        single = run(gym.make(env_id, **kwargs), seconds=args.seconds, seed=args.seed)
+        singles[env_id] = single
         print(_single_line(single))
         vec_env = gym.make_vec(
-            env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point"
+            env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point", **kwargs
         )
         vec = run(vec_env, seconds=args.seconds, seed=args.seed)
         batch_ms = 1e3 * vec.wall_s * args.num_envs / vec.env_steps

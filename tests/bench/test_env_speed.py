@@ -59,3 +59,23 @@ def test_main_prints_each_env_and_its_ratio_to_the_peer(capsys):
     assert f"{ID} single / Pendulum-v1 single:" in out
     assert env_speed.main([ID, "--seconds", "0.05", "--num-envs", "2", "--peer", "none"]) == 0
     assert "single /" not in capsys.readouterr().out
+
+
+def test_main_passes_the_backend_to_both_envs(monkeypatch):
+    made = []
+    real_make, real_make_vec = gym.make, gym.make_vec
+
+    def make(env_id, **kwargs):
+        made.append(("single", kwargs.get("backend")))
+        return real_make(env_id, **kwargs)
+
+    def make_vec(env_id, **kwargs):
+        made.append(("vector", kwargs.get("backend")))
+        return real_make_vec(env_id, **kwargs)
+
+    monkeypatch.setattr(env_speed.gym, "make", make)
+    monkeypatch.setattr(env_speed.gym, "make_vec", make_vec)
+    argv = [ID, "--seconds", "0.02", "--num-envs", "2", "--peer", "none"]
+    assert env_speed.main([*argv, "--backend", "numpy"]) == 0
+    assert env_speed.main(argv) == 0
+    assert made == [("single", "numpy"), ("vector", "numpy"), ("single", None), ("vector", None)]
