@@ -88,16 +88,19 @@ def velocity_scale(free, target):
 
 
 @njit(cache=True, error_model="numpy")
-def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, work):
+def gauss_seidel(
+    a, free, target, mu, lam, extra, r, max_iterations, tolerance, work, decomposed=False
+):
     """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
-    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats. Returns (sweeps,
-    converged)."""
+    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats; ``decomposed``: its
+    first 6C floats already hold this A's A_tt decompositions (an earlier call on the same A
+    and ``work``). Returns (sweeps, converged)."""
     c = target.shape[0]
     size = r * c
     scale = velocity_scale(free, target)
     eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
-    if r == 3:
+    if r == 3 and not decomposed:
         for i in range(c):
             j = 3 * i
             e0, e1, q00, q01, q10, q11 = eig2(a[j + 1, j + 1], a[j + 2, j + 1], a[j + 2, j + 2])

@@ -167,15 +167,30 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
 
 @njit(cache=True, error_model="numpy")
 def converge(
-    a, free, target, mu, lam, extra, max_iterations, tolerance, newton_after, newton_steps, work
+    a,
+    free,
+    target,
+    mu,
+    lam,
+    extra,
+    max_iterations,
+    tolerance,
+    newton_after,
+    newton_steps,
+    work,
+    decomposed=False,
 ):
     """``solve.converge`` for one element: rounds of ``newton_after`` Gauss–Seidel sweeps
-    with Newton polishes between them. Returns (sweeps, converged, Newton steps)."""
+    with Newton polishes between them (``decomposed`` as ``gauss_seidel``'s; the rounds after
+    the first reuse the first's). Returns (sweeps, converged, Newton steps)."""
     sweeps = 0
     steps = 0
     while sweeps < max_iterations:
         chunk = min(newton_after, max_iterations - sweeps)
-        more, done = gauss_seidel(a, free, target, mu, lam, extra, 3, chunk, tolerance, work)
+        more, done = gauss_seidel(
+            a, free, target, mu, lam, extra, 3, chunk, tolerance, work, decomposed
+        )
+        decomposed = True
         sweeps += more
         if done:
             return sweeps, True, steps
