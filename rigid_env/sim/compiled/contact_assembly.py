@@ -244,17 +244,21 @@ def delassus(cs, owner, rows, a):
     """A = J̃ J̃ᵀ (rows·C, rows·C) over the first ``rows`` rows of each contact (3: all,
     1: the normal block A_nn); contacts of different bodies do not couple."""
     c = owner.shape[0]
+    # The lower triangle, mirrored: entry (q, p) is the same products summed in the same order.
     for i in range(c):
-        for j in range(c):
-            for r in range(rows):
+        for r in range(rows):
+            p = rows * i + r
+            for j in range(i + 1):
                 for s in range(rows):
-                    if owner[i] != owner[j]:
-                        a[rows * i + r, rows * j + s] = 0.0
-                        continue
+                    q = rows * j + s
+                    if q > p:
+                        break
                     acc = 0.0
-                    for k in range(6):
-                        acc += cs[i, JT + 6 * r + k] * cs[j, JT + 6 * s + k]
-                    a[rows * i + r, rows * j + s] = acc
+                    if owner[i] == owner[j]:
+                        for k in range(6):
+                            acc += cs[i, JT + 6 * r + k] * cs[j, JT + 6 * s + k]
+                    a[p, q] = acc
+                    a[q, p] = acc
 
 
 @njit(cache=True, error_model="numpy")

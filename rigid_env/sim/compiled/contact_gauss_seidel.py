@@ -88,16 +88,19 @@ def velocity_scale(free, target):
 
 
 @njit(cache=True, error_model="numpy")
-def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, work):
+def gauss_seidel(
+    a, free, target, mu, lam, extra, r, max_iterations, tolerance, work, decomposed=False
+):
     """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
-    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats. Returns (sweeps,
-    converged)."""
+    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats; ``decomposed``: its
+    first 6C floats already hold this A's A_tt decompositions (an earlier call on the same A
+    and ``work``). Returns (sweeps, converged)."""
     c = target.shape[0]
     size = r * c
     scale = velocity_scale(free, target)
     eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
-    if r == 3:
+    if r == 3 and not decomposed:
         for i in range(c):
             j = 3 * i
             e0, e1, q00, q01, q10, q11 = eig2(a[j + 1, j + 1], a[j + 2, j + 1], a[j + 2, j + 2])
@@ -110,15 +113,18 @@ def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, 
         for i in range(c):
             j = r * i
             # The contact's velocities before its update (all its rows), as numpy's einsum.
+            # Three independent sums in one loop (each in numpy's order: the same roundings).
             acc0 = 0.0
             acc1 = 0.0
             acc2 = 0.0
-            for k in range(size):
-                acc0 += a[j, k] * lam[k]
             if r == 3:
                 for k in range(size):
+                    acc0 += a[j, k] * lam[k]
                     acc1 += a[j + 1, k] * lam[k]
                     acc2 += a[j + 2, k] * lam[k]
+            else:
+                for k in range(size):
+                    acc0 += a[j, k] * lam[k]
             vn = free[j] + acc0
             ln_old = lam[j]
             ln = max(ln_old - (vn - target[i]) * (1.0 / a[j, j]), 0.0)
@@ -143,13 +149,28 @@ def gauss_seidel(a, free, target, mu, lam, extra, r, max_iterations, tolerance, 
                     vt2,
                     mu[i] * (ln + extra[i]),
                 )
-        # The sweep's effect on the contact velocities, A Δλ.
-        change = 0.0
-        for i in range(size):
-            acc = 0.0
-            for k in range(size):
-                acc += a[i, k] * (lam[k] - before[k])
-            change = max(change, abs(acc))
-        if change <= tolerance * scale:
+        # The sweep's effect on the contact velocities, A Δλ, rows in pairs (two independent
+        # sums, each in order), stopping at the first row over the tolerance.
+        for k in range(size):
+            before[k] = lam[k] - before[k]  # now Δλ
+        limit = tolerance * scale
+        converged = True
+        i = 0
+        while i < size and converged:
+            if i + 1 < size:
+                acc = 0.0
+                acc1 = 0.0
+                for k in range(size):
+                    acc += a[i, k] * before[k]
+                    acc1 += a[i + 1, k] * before[k]
+                converged = abs(acc) <= limit and abs(acc1) <= limit
+                i += 2
+            else:
+                acc = 0.0
+                for k in range(size):
+                    acc += a[i, k] * before[k]
+                converged = abs(acc) <= limit
+                i += 1
+        if converged:
             return sweep, True
     return max_iterations, False

@@ -115,18 +115,22 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
     c = target.shape[0]
     size = 3 * c
     goal = MARGIN * tolerance * velocity_scale(free, target)
-    f = np.empty(size)
-    f2 = np.empty(size)
-    zn = np.empty(c)
-    zt = np.empty((c, 2))
-    rho = np.empty(c)
-    zn2 = np.empty(c)
-    zt2 = np.empty((c, 2))
-    rho2 = np.empty(c)
-    g = np.empty((size, size))
-    normal = np.empty((size, size))
-    step = np.empty(size)
-    trial = np.empty(size)
+    # One scratch allocation carved into views (thirteen cost ~0.6 µs per call).
+    buf = np.empty(2 * size * size + 4 * size + 8 * c)
+    g = buf[: size * size].reshape((size, size))
+    normal = buf[size * size : 2 * size * size].reshape((size, size))
+    o = 2 * size * size
+    f = buf[o : o + size]
+    f2 = buf[o + size : o + 2 * size]
+    step = buf[o + 2 * size : o + 3 * size]
+    trial = buf[o + 3 * size : o + 4 * size]
+    o += 4 * size
+    zn = buf[o : o + c]
+    rho = buf[o + c : o + 2 * c]
+    zn2 = buf[o + 2 * c : o + 3 * c]
+    rho2 = buf[o + 3 * c : o + 4 * c]
+    zt = buf[o + 4 * c : o + 6 * c].reshape((c, 2))
+    zt2 = buf[o + 6 * c : o + 8 * c].reshape((c, 2))
     phi = residual(a, free, target, mu, extra, lam, f, zn, zt, rho)
     steps = 0
     while steps < budget:
@@ -163,15 +167,30 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
 
 @njit(cache=True, error_model="numpy")
 def converge(
-    a, free, target, mu, lam, extra, max_iterations, tolerance, newton_after, newton_steps, work
+    a,
+    free,
+    target,
+    mu,
+    lam,
+    extra,
+    max_iterations,
+    tolerance,
+    newton_after,
+    newton_steps,
+    work,
+    decomposed=False,
 ):
     """``solve.converge`` for one element: rounds of ``newton_after`` Gauss–Seidel sweeps
-    with Newton polishes between them. Returns (sweeps, converged, Newton steps)."""
+    with Newton polishes between them (``decomposed`` as ``gauss_seidel``'s; the rounds after
+    the first reuse the first's). Returns (sweeps, converged, Newton steps)."""
     sweeps = 0
     steps = 0
     while sweeps < max_iterations:
         chunk = min(newton_after, max_iterations - sweeps)
-        more, done = gauss_seidel(a, free, target, mu, lam, extra, 3, chunk, tolerance, work)
+        more, done = gauss_seidel(
+            a, free, target, mu, lam, extra, 3, chunk, tolerance, work, decomposed
+        )
+        decomposed = True
         sweeps += more
         if done:
             return sweeps, True, steps

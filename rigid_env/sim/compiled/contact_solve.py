@@ -145,6 +145,7 @@ def solve(e, st, d):
             ints[I_NEWTON_AFTER],
             ints[I_NEWTON_STEPS],
             work,
+            True,  # the probe's sweep decomposed A_tt into ``work``
         )
         sweeps += more
     if not converged:

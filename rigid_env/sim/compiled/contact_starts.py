@@ -85,12 +85,22 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             kn = mu[i] * extra[i]
             known[3 * i + 1] = kn * direction[i, 0] if bound[i] else 0.0
             known[3 * i + 2] = kn * direction[i, 1] if bound[i] else 0.0
-        for i in range(size):
-            acc = 0.0
-            if any_bound:
+        if any_bound:
+            for i in range(0, size, 3):  # a contact's three rows: independent sums, each in order
+                acc0 = 0.0
+                acc1 = 0.0
+                acc2 = 0.0
                 for j in range(size):
-                    acc += a[i, j] * known[j]
-            rhs[i] = goal[i] - acc if live[i] else 0.0
+                    kj = known[j]
+                    acc0 += a[i, j] * kj
+                    acc1 += a[i + 1, j] * kj
+                    acc2 += a[i + 2, j] * kj
+                rhs[i] = goal[i] - acc0 if live[i] else 0.0
+                rhs[i + 1] = goal[i + 1] - acc1 if live[i + 1] else 0.0
+                rhs[i + 2] = goal[i + 2] - acc2 if live[i + 2] else 0.0
+        else:
+            for i in range(size):
+                rhs[i] = goal[i] if live[i] else 0.0
         # The live rows' system, solved for its minimum-norm solution; dead rows get zero.
         # Columns: a contact at the cone's boundary acts through n + μ d·t.
         count = 0
@@ -139,10 +149,13 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             known[3 * i + 2] = direction_1
         settled = True
         for i in range(c):
-            acc = 0.0
-            for j in range(size):
-                acc += a[3 * i, j] * lam[j]
-            nxt[i] = (on[i] and lam[3 * i] > 0) or ((not on[i]) and short[i] - acc > push)
+            if on[i]:
+                nxt[i] = lam[3 * i] > 0
+            else:  # an off contact's normal velocity: does the start push through it?
+                acc = 0.0
+                for j in range(size):
+                    acc += a[3 * i, j] * lam[j]
+                nxt[i] = short[i] - acc > push
             if nxt[i] != on[i] or over[i]:
                 settled = False
         if settled:

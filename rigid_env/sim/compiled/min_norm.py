@@ -56,14 +56,28 @@ def psd_min_norm(s, b, x, work):
             break
         root = math.sqrt(remaining[p])
         remaining[p] = -math.inf
-        for i in range(k):
-            if remaining[i] == -math.inf and i != p:
+        # The rows still to pivot, in pairs: two independent sums, each in order.
+        held = -1
+        for i in range(k + 1):
+            if i < k and remaining[i] == -math.inf:
                 factor[i, j] = 0.0
-                continue
-            acc = s[i, p]
-            for m in range(j):
-                acc -= factor[i, m] * factor[p, m]
-            factor[i, j] = acc / root
+            elif i < k and held < 0:
+                held = i
+            elif i < k:
+                acc0 = s[held, p]
+                acc1 = s[i, p]
+                for m in range(j):
+                    fp = factor[p, m]
+                    acc0 -= factor[held, m] * fp
+                    acc1 -= factor[i, m] * fp
+                factor[held, j] = acc0 / root
+                factor[i, j] = acc1 / root
+                held = -1
+            elif held >= 0:
+                acc0 = s[held, p]
+                for m in range(j):
+                    acc0 -= factor[held, m] * factor[p, m]
+                factor[held, j] = acc0 / root
         factor[p, j] = root
         for i in range(k):
             if remaining[i] != -math.inf:
