@@ -91,9 +91,9 @@ def main_job_summary(doc: dict) -> str:
     """One line per env of a main job's record (``python -m agents``, ``OUT/main_job.json``):
     the training it did, where, and what the learned policy reached."""
     lines = [
-        "| env | algorithm | env steps | training | steps/s | physics | learned success "
-        "| analytic success |",
-        "|---|---|---|---|---|---|---|---|",
+        "| env | algorithm | env steps | training | steps/s | physics | physics share "
+        "| learned success | analytic success |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for env_id in doc["envs"]:
         result = doc["results"][env_id]
@@ -103,7 +103,7 @@ def main_job_summary(doc: dict) -> str:
         lines.append(
             f"| {env_id} | {result['algo'].upper()} | {tp['env_steps']:,d} "
             f"| {tp['learn_seconds'] / 60:.1f} min | {tp['steps_per_second']:,.0f} "
-            f"| {result['backend']} | {learned['success_rate']:.1%} "
+            f"| {result['backend']} | {tp['sim_share']:.0%} | {learned['success_rate']:.1%} "
             f"| {rows['analytic']['success_rate']:.1%} |"
         )
     lines += ["", f"Whole job (training, evaluation, clips): {doc['wall_seconds'] / 60:.1f} min."]
