@@ -48,6 +48,10 @@ The context (:class:`StepContext`), all arrays batch-first, ``(*batch, n_bodies,
 ``cache``
     a dict for values one stage computes for a later stage of the same owner (e.g. the
     start-of-step rotation matrix the integrator's two parts share); keys are the owner's.
+``warm``
+    what a stage hands to the same stage of the next step of one ``Scene.step`` call (the
+    contact solve's impulses when ``SolverSettings.warm_start``); ``None`` in a call's first
+    step, so a call's first step is the same whatever came before.
 
 Order of a step
 ---------------
@@ -113,6 +117,7 @@ class StepContext:
         "displacement",
         "report",
         "cache",
+        "warm",
     )
 
     def __init__(
@@ -141,6 +146,9 @@ class StepContext:
         # Values one stage computes for a later one of the same integrator (e.g. the rotation
         # matrix at the start of the step); private to the stages that write them.
         self.cache: dict[str, Any] = {}
+        # What the previous step of the same ``Scene.step`` call left for this one (the contact
+        # solve's impulses, ``SolverSettings.warm_start``); None in a call's first step.
+        self.warm: Any = None
 
     def add_wrench(self, force: np.ndarray | None, torque: np.ndarray | None) -> None:
         """Add a term's (F, T) to the accumulators (``None`` = that component is zero)."""

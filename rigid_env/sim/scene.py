@@ -159,7 +159,7 @@ class Scene:
         step."""
         report = self._report
         if report is None:
-            report = self._report = self._driver.report(self._report_columns)
+            report = self._report = self._driver.report(*self._report_columns)
         return report
 
     @report.setter
@@ -256,8 +256,11 @@ class Scene:
 
         ``steps`` (a positive int) runs that many steps in one call, each exactly as a call of
         its own would (``step(s, steps=k)`` equals k calls bit for bit) but paying the call's
-        overhead once: on the compiled backend one kernel call runs all k. A step that diverges
-        raises as a single call would, and the k steps' states are not returned.
+        overhead once: on the compiled backend one kernel call runs all k. With
+        ``SolverSettings(warm_start=True)`` each step after a call's first starts its contact
+        solve from the previous step's impulses: the same solution to the solve's tolerance,
+        cheaper, but not bit for bit the k separate calls (each of which starts cold). A step
+        that diverges raises as a single call would, and the k steps' states are not returned.
         ``scene.report`` is then the k steps' reports merged entry by entry into their maximum
         (elementwise for arrays, OR for flags; see :func:`merge_reports`): an iteration count
         is the most any step used, a count of capped solves is non-zero iff some step stopped
@@ -278,11 +281,12 @@ class Scene:
         torque = _load(torque, "torque", shape)
         force = _load(force, "force", shape)
         body_torque = _load(body_torque, "body_torque", shape)
-        reports, began = [], start
+        reports, began, warm = [], start, None
         for _ in range(steps):
             ctx = StepContext(
                 self.model, self.dt, State(*arrays), force, torque, self.forces, body_torque
             )
+            ctx.warm = warm
             # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is
             # renormalised; the body torque acts from that orientation.
             ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
@@ -299,7 +303,7 @@ class Scene:
             if not _all_finite(new):
                 self._diagnose(arrays)
             reports.append(ctx.report)
-            arrays = new.arrays()
+            arrays, warm = new.arrays(), ctx.warm
             if timer is not None:
                 start = clock()
                 timer.add("check", start - mid)
@@ -331,9 +335,10 @@ class Scene:
         if timer is not None:
             mid = time.perf_counter()
             timer.add("validate", mid - start)
-        x, q, v, w, report, (bad_orientation, diverged, capped) = drv(
+        x, q, v, w, report, (bad_orientation, diverged, capped), counts = drv(
             *arrays, force, torque, body_torque, steps
         )
+        counts = None if steps == 1 else counts
         if timer is not None:
             end = time.perf_counter()
             timer.add("compiled", end - mid)
@@ -351,9 +356,9 @@ class Scene:
                     raise ValueError(f"{name} contains NaN or infinity")
             self._diagnose(arrays)
         if capped:  # the report now: it warns (ContactSolverWarning) from this step
-            self._report = drv.report(report)
+            self._report = drv.report(report, counts)
         else:  # the report's columns: ``report`` builds it when read
-            self._report, self._report_columns = None, report
+            self._report, self._report_columns = None, (report, counts)
         if len(shape) != 3:
             qshape = shape[:-1] + (4,)
             x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)

@@ -7,6 +7,7 @@ from typing import Protocol
 import numpy as np
 
 from .body import Body
+from .contacts import SolverSettings
 from .model import Ground
 from .rotation import quat_exp
 from .scene import CONTACT_INTEGRATOR, Scene
@@ -28,8 +29,10 @@ def landing_scene(
     dt: float = 1 / 240,
     restitution: float = 0.3,
     friction: float = 0.5,
+    contact_solver: SolverSettings | None = None,
 ) -> tuple[Scene, InitialState]:
-    """A 1 kg box (half extents 0.1, 0.15, 0.2 m) thrown at the ground under gravity.
+    """A 1 kg box (half extents 0.1, 0.15, 0.2 m) thrown at the ground under gravity
+    (``contact_solver``: the scene's, default ``SolverSettings()``).
 
     Returns ``(scene, initial_state)`` where ``initial_state(batch_shape=(), rng=None)`` drops
     the box from 1 m with a tilt and a spin (random per batch element when ``rng`` is given,
@@ -42,6 +45,7 @@ def landing_scene(
         integrator=integrator,
         gravity=(0.0, 0.0, -9.81),
         ground=Ground(restitution=restitution, friction=friction),
+        contact_solver=contact_solver,
     )
 
     def initial_state(

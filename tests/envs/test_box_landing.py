@@ -23,6 +23,7 @@ from env_testing import (
 
 from rigid_env import sim
 from rigid_env.envs.box_landing import (
+    CONTACT_SOLVER,
     FACE_NORMALS,
     FACES,
     GRAVITY,
@@ -153,6 +154,7 @@ def test_termination_case_really_terminates():
         ("action_weight", -0.1),
         ("success_bonus", -5.0),
         ("spin_scale", 0.0),
+        ("contact_solver", {"warm_start": True}),
         ("body", sim.Body.sphere(0.2, 1.0)),  # a face to land on needs a box
         ("render_mode", "ascii"),
     ],
@@ -177,6 +179,13 @@ def test_arguments_reach_the_env_through_make():
     assert task.scene.integrator == sim.CONTACT_INTEGRATOR
     body = sim.Body.box((0.2, 0.2, 0.1), 3.0)
     assert gym.make(ID, body=body).unwrapped.task.body is body
+    for solver in (sim.SolverSettings(), CONTACT_SOLVER):  # reaches the scene's solve stage
+        task = make_vec(ID, 2, contact_solver=solver).unwrapped.task
+        (solve,) = [s for s in task.scene.pipeline if s.name == "solve_contacts"]
+        assert solve.settings is solver
+    assert CONTACT_SOLVER.warm_start and gym.make(ID).unwrapped.task.config.contact_solver is (
+        CONTACT_SOLVER
+    )
 
 
 # --- pickling, rendering -------------------------------------------------------------------------

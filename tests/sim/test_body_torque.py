@@ -340,7 +340,8 @@ def test_reports_of_several_steps_merge_into_their_maximum():
 
 def test_the_compiled_step_carries_results_and_folds_report_rows():
     """``steps.carry`` and ``steps.fold`` on a hand-made step tuple: the result rows become the
-    start rows, contact slots are zeroed, and the report is the maximum over the steps."""
+    start rows, contact slots are zeroed but for the warm-start columns (the previous step's
+    impulses, ``SolverSettings.warm_start``), and the report is the maximum over the steps."""
     pytest.importorskip("numba")
     from rigid_env.sim.compiled import layout, steps
 
@@ -356,7 +357,9 @@ def test_the_compiled_step_carries_results_and_folds_report_rows():
     for start, result in ((layout.X0, layout.X), (layout.Q0, layout.Q), (layout.W0, layout.W)):
         assert np.array_equal(st[start][1], st[result][1])
         assert not np.array_equal(st[start][0], st[result][0])  # other rows untouched
-    assert not st[layout.CONTACT][1].any() and st[layout.CONTACT][0].all()
+    contact = st[layout.CONTACT]
+    assert not contact[1, :, : layout.WARM].any() and contact[0].all()
+    assert contact[1, :, layout.WARM :].all()  # kept for the next step's warm start
     assert not report[1].any() and total[1, layout.ITERATIONS] == 4.0
     report[1, layout.ITERATIONS] = 2.0  # the next step used fewer iterations, did not cap
     steps.fold(1, st, total)

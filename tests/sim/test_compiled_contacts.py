@@ -252,3 +252,36 @@ def test_threaded_contact_step_equals_serial_bit_for_bit():
         )
         assert np.array_equal(ra.touched, rb.touched)
         state = a
+
+
+WARM_CALL = 4  # steps per call in the warm-start comparison
+
+
+@pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
+@pytest.mark.parametrize("name", list(scenes("numpy", sim.SolverSettings())))
+def test_compiled_warm_start_matches_numpy_call_by_call(name):
+    # SolverSettings(warm_start=True): a call's steps after its first start their solve from
+    # the previous step's impulses, on both backends (contact slot i is the same vertex).
+    # Each call of WARM_CALL steps starts from numpy's state. Within it each step adds at most
+    # step_bound (both solves converge to the tolerance from starts that differ by what the
+    # earlier steps left), and the dynamics at most double a difference over WARM_CALL steps
+    # (the tumbling box's doubling takes a few steps, module docstring): 2 WARM_CALL
+    # step_bound, with the sweeps of the call's slowest step.
+    settings = sim.SolverSettings(warm_start=True)
+    numpy_scene, state = scenes("numpy", settings)[name]
+    compiled_scene, _ = scenes("compiled", settings)[name]
+    assert compiled_scene.backend == "compiled"
+    engaged = 0
+    for _ in range(STEPS // WARM_CALL):
+        ref = numpy_scene.step(state, steps=WARM_CALL)
+        out = compiled_scene.step(state, steps=WARM_CALL)
+        a, b = numpy_scene.report["contacts"], compiled_scene.report["contacts"]
+        assert (b.engaged, b.impacts, b.capped) == (a.engaged, a.impacts, a.capped)
+        sweeps = max(a.iterations, b.iterations)
+        bound = np.inf if a.capped else 2 * WARM_CALL * step_bound(settings.tolerance, sweeps)
+        for field in ("position", "orientation", "linear_velocity", "angular_velocity"):
+            diff = np.max(np.abs(getattr(out, field) - getattr(ref, field)))
+            assert diff <= bound, (field, diff, bound, a, b)
+        engaged += a.engaged > 0
+        state = ref
+    assert engaged > 0

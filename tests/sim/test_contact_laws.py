@@ -27,10 +27,25 @@ def _yaws(values):
     return np.array([quat_exp(np.array([0.0, 0.0, y])) for y in values])
 
 
+# The laws hold with the warm start too (``SolverSettings.warm_start``: a call's steps after
+# its first start from the previous step's impulses). Cold, the tests step one call per step;
+# warm, in calls of CHUNK steps (BoxLanding's frame_skip), checked after each call.
+WARM = pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
+CHUNK = 8
+
+
+def _calls(steps, warm):
+    """Steps per ``Scene.step`` call: ``steps`` in all, one per call cold, CHUNK warm."""
+    if not warm:
+        return [1] * steps
+    return [CHUNK] * (steps // CHUNK) + ([steps % CHUNK] if steps % CHUNK else [])
+
+
 # --- static friction -----------------------------------------------------------------------------
 
 
-def test_static_friction_holds_inside_the_cone_and_not_outside():
+@WARM
+def test_static_friction_holds_inside_the_cone_and_not_outside(warm):
     # An incline of angle θ, emulated by tilting gravity. Inside the cone (tan 0.3 = 0.31 <
     # μ = 0.5) the exact answer is v = 0: sticking is an equality the active-set start solves
     # exactly, and a converged solve leaves at most 1e-12 × g Δt = 4e-14 m/s; the issue's bar
@@ -47,14 +62,15 @@ def test_static_friction_holds_inside_the_cone_and_not_outside():
             1 / 240,
             gravity=(G * np.sin(theta), 0.0, -G * np.cos(theta)),
             ground=sim.Ground(0.0, 0.5),
+            contact_solver=sim.SolverSettings(warm_start=warm),
         )
         state = scene.initial_state(
             position=(0, 0, 0.1), orientation=yaw[:, None], batch_shape=(4,)
         )
         start = state.copy()
         steps = 480
-        for _ in range(steps):
-            state = scene.step(state)
+        for k in _calls(steps, warm):
+            state = scene.step(state, steps=k)
             if holds:
                 assert np.max(np.abs(state.linear_velocity)) < 1e-9
                 assert np.max(np.abs(state.angular_velocity)) < 1e-9
@@ -80,8 +96,14 @@ REST_STEPS = int(os.environ.get("RIGID_ENV_REST_STEPS", "1000"))
 DRIFT_PER_STEP = 1e-9 / 1e5
 
 
-def _resting(body, orientation):
-    scene = sim.Scene(body, 1 / 240, gravity=DOWN, ground=sim.Ground(0.3, 0.5))
+def _resting(body, orientation, warm=False):
+    scene = sim.Scene(
+        body,
+        1 / 240,
+        gravity=DOWN,
+        ground=sim.Ground(0.3, 0.5),
+        contact_solver=sim.SolverSettings(warm_start=warm),
+    )
     low = -np.min(quat_rotate(orientation[:, None, :], _points(body))[..., 2], axis=-1)
     position = np.zeros((len(orientation), 1, 3))
     position[:, 0, 2] = low
@@ -99,8 +121,9 @@ def _points(body):
     return np.asarray(shape.vertices)
 
 
+@WARM
 @pytest.mark.parametrize("shape", ["box", "sphere", "tetrahedron", "l_prism"])
-def test_resting_bodies_of_every_shape_stay_put(shape):
+def test_resting_bodies_of_every_shape_stay_put(shape, warm):
     # Placed exactly on the ground at rest. Rest is the exact solution of each step (v = 0,
     # the weight's impulse carried by the support), which the active-set start finds: the
     # bodies may not drift more than DRIFT_PER_STEP per step, nor turn more than that over
@@ -117,10 +140,10 @@ def test_resting_bodies_of_every_shape_stay_put(shape):
         "l_prism": (l_prism(), list(yaw)),
     }
     body, orientation = bodies[shape]
-    scene, state = _resting(body, np.array(orientation))
+    scene, state = _resting(body, np.array(orientation), warm)
     start = state.copy()
-    for _ in range(REST_STEPS):
-        state = scene.step(state)
+    for k in _calls(REST_STEPS, warm):
+        state = scene.step(state, steps=k)
     bound = REST_STEPS * DRIFT_PER_STEP
     np.testing.assert_allclose(state.position, start.position, rtol=0, atol=bound)
     assert np.max(quat_angle(state.orientation, start.orientation)) * 0.1 <= bound
@@ -131,7 +154,8 @@ def test_resting_bodies_of_every_shape_stay_put(shape):
 # --- sliding -------------------------------------------------------------------------------------
 
 
-def test_box_sliding_in_any_direction_keeps_its_yaw_and_stops_at_closed_form():
+@WARM
+def test_box_sliding_in_any_direction_keeps_its_yaw_and_stops_at_closed_form(warm):
     # Coulomb friction opposes the sliding velocity exactly (the friction-disk step of
     # solve.py), so a box sliding flat in any direction, yawed or not, decelerates along its
     # path at μ g: the speed drops by μ g Δt each step, no sideways force, no torque about z.
@@ -139,7 +163,8 @@ def test_box_sliding_in_any_direction_keeps_its_yaw_and_stops_at_closed_form():
     # v0²/(2 μ g) to first order in Δt: within v0 Δt of it.
     mu, v0, dt = 0.5, 2.0, 1e-3
     box = sim.Body.box((0.2, 0.15, 0.1), 1.0)
-    scene = sim.Scene(box, dt, gravity=DOWN, ground=sim.Ground(0.0, mu))
+    solver = sim.SolverSettings(warm_start=warm)
+    scene = sim.Scene(box, dt, gravity=DOWN, ground=sim.Ground(0.0, mu), contact_solver=solver)
     heading = np.array([0.0, np.pi / 4, 2.0, -2.6, 0.0, np.pi / 4, 2.0, -2.6])
     yaw = _yaws([0.0] * 4 + [0.4, 0.4, 1.1, -0.7])
     direction = np.stack((np.cos(heading), np.sin(heading), 0 * heading), -1)
@@ -150,8 +175,8 @@ def test_box_sliding_in_any_direction_keeps_its_yaw_and_stops_at_closed_form():
         batch_shape=(8,),
     )
     start = state.copy()
-    for _ in range(int(v0 / (mu * G) / dt) + 20):
-        state = scene.step(state)
+    for k in _calls(int(v0 / (mu * G) / dt) + 20, warm):
+        state = scene.step(state, steps=k)
     travel = state.position[:, 0] - start.position[:, 0]
     along = np.sum(travel * direction, axis=-1)
     assert np.all(np.abs(along - v0**2 / (2 * mu * G)) <= v0 * dt)
@@ -290,21 +315,25 @@ def test_touching_elastic_bodies_keep_momentum_and_never_gain_energy():
 # --- large steps ---------------------------------------------------------------------------------
 
 
+@WARM
 @pytest.mark.parametrize("dt", [1 / 60, 0.1, 0.5, 1.0])
-def test_any_step_up_to_one_second_never_gains_energy_or_tunnels(dt):
+def test_any_step_up_to_one_second_never_gains_energy_or_tunnels(dt, warm):
     # The landing scene (tumbling boxes, ε = 0.3) at steps up to 1 s: inaccurate, but each
     # step ends with no more KE + PE than it started with (relative 1e-12: rounding), and no
-    # corner ends below the ground (1e-12 m: rounding of the separation's lift).
-    scene, init = landing_scene(dt=dt)
+    # corner ends below the ground (1e-12 m: rounding of the separation's lift). Warm, in
+    # calls of 2 steps (the steps are long: few of them), checked after each call against
+    # twice the one step's bound.
+    scene, init = landing_scene(dt=dt, contact_solver=sim.SolverSettings(warm_start=warm))
     state = init((4,), np.random.default_rng(3))
     box = scene.model.bodies[0].shape
     e = scene.energy(state)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sim.ContactSolverWarning)
+        k = 2 if warm else 1
         for _ in range(int(2 / dt) + 10):
-            state = scene.step(state)
+            state = scene.step(state, steps=k)
             e_new = scene.energy(state)
-            assert np.all(e_new <= e + 1e-12 * np.maximum(np.abs(e), np.abs(e_new)))
+            assert np.all(e_new <= e + k * 1e-12 * np.maximum(np.abs(e), np.abs(e_new)))
             e = e_new
             corners = state.position[..., None, :] + quat_rotate(
                 state.orientation[..., None, :], box.vertices
@@ -402,3 +431,46 @@ def test_solver_settings_are_validated_and_a_cap_is_reported():
         warnings.simplefilter("error", sim.ContactSolverWarning)
         scene.step(state)
     assert scene.report["contacts"].converged and scene.report["contacts"].engaged == 1
+
+
+def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(monkeypatch):
+    # A box stuck on an incline needs the active-set start every step when cold (the particle
+    # start has no friction). Warm, only the call's first step does: the later ones start
+    # from the previous step's impulses, which are the answer (the box is at rest). The
+    # result is rest either way (the static-friction test above), within the same tolerance.
+    from rigid_env.sim.contacts import solve
+
+    calls = []
+    original = solve.active_set_start
+
+    def spy(*args):
+        calls.append(len(args[1]))
+        return original(*args)
+
+    monkeypatch.setattr(solve, "active_set_start", spy)
+    theta = 0.3
+    results = {}
+    for warm in (False, True):
+        scene = sim.Scene(
+            sim.Body.box((0.2, 0.2, 0.1), 1.0),
+            1 / 240,
+            gravity=(G * np.sin(theta), 0.0, -G * np.cos(theta)),
+            ground=sim.Ground(0.0, 0.5),
+            contact_solver=sim.SolverSettings(warm_start=warm),
+            backend="numpy",
+        )
+        start = scene.initial_state(position=(0, 0, 0.1))
+        calls.clear()
+        results[warm] = scene.step(start, steps=CHUNK)
+        assert len(calls) == (1 if warm else CHUNK)
+    for field in ("linear_velocity", "angular_velocity"):
+        np.testing.assert_allclose(getattr(results[True], field), 0.0, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(getattr(results[False], field), 0.0, rtol=0, atol=1e-9)
+
+
+def test_warm_start_setting_is_validated():
+    with pytest.raises(ValueError, match="warm_start"):
+        sim.SolverSettings(warm_start="yes")
+    with pytest.raises(ValueError, match="warm_start"):
+        sim.SolverSettings(warm_start=1)
+    assert sim.SolverSettings(warm_start=np.bool_(True)).warm_start is True

@@ -60,7 +60,7 @@ def contact_problem(monkeypatch):
     monkeypatch.setattr(stages, "solve_inelastic", spy)
     scene = landing_scene(backend="numpy")
     scene.step(regression_state(scene), body_torque=[TORQUE])
-    layout, rows, u, impulse, dt, settings, gap, remaining = seen["args"]
+    layout, rows, u, impulse, dt, settings, gap, remaining, _ = seen["args"]
     free = rows.velocity(u, layout)
     if gap is None:
         gap, remaining = rows.gap, np.full(len(u), dt)

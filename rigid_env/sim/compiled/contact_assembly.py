@@ -25,8 +25,9 @@ from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
 # Index of the integer parameters (``I``) and float parameters (``F``) in the data tuple.
 I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY, I_C, I_N, I_V = range(9)
 F_DT, F_TOLERANCE = range(2)
-# The Newton polish's settings sit at the end of the integer array (after the index tables).
-I_NEWTON_AFTER, I_NEWTON_STEPS = -2, -1
+# The warm start's flag and the Newton polish's settings sit at the end of the integer array
+# (after the index tables).
+I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -3, -2, -1
 
 
 def contact_data(scene) -> tuple | None:
@@ -60,7 +61,7 @@ def contact_data(scene) -> tuple | None:
         n,
         v,
     ]
-    newton = [settings.newton_after, settings.newton_steps]
+    newton = [int(settings.warm_start), settings.newton_after, settings.newton_steps]
     ints = np.concatenate((head, lay.a, shaped, newton)).astype(np.int64)
     body = bodies.body_data(model)
     floats = np.concatenate(

@@ -2,7 +2,8 @@
 (ground contacts), and the step's ``ContactReport`` from the report columns.
 
 Order as numpy's: free contact velocities and targets (the gaps where the impacts left them,
-over the time left), the particle start probed by one sweep, then rounds of Gauss–Seidel with
+over the time left), the particle start (or the previous step's impulses, kept in the contact
+slots' ``WARM`` columns, with ``SolverSettings.warm_start``) probed by one sweep, then rounds of Gauss–Seidel with
 Newton polishes (``contact_newton.converge``) from the particle start or from the active-set
 start (``SolverSettings.start``), and an unconverged impulse cut back so it adds no kinetic
 energy (``dissipative``). A cached ``solve`` is recompiled when any simulator source changes
@@ -23,6 +24,7 @@ from .contact_assembly import (
     I_NEWTON_AFTER,
     I_NEWTON_STEPS,
     I_PARTICLE,
+    I_WARM,
     add_impulses,
     contact_data,
     contact_velocity,
@@ -49,6 +51,8 @@ from .layout import (
     REPORT,
     TOUCHED,
     UNPAID_ENERGY,
+    WARM,
+    WARM_OK,
 )
 from .registry import Kernel, register
 
@@ -84,6 +88,7 @@ def solve(e, st, d):
     """``SolveContacts`` for one engaged element; writes ITERATIONS, CAPPED and TOUCHED."""
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
+        st[CONTACT][e, 0, WARM_OK] = 0.0  # the next step starts cold
         return
     ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
     dt = floats[F_DT]
@@ -118,13 +123,19 @@ def solve(e, st, d):
         target[i] = -gap / remaining if gap > 0 else 0.0
         short[i] = target[i] - free[3 * i]
         extra[i] = cs[i, IMPULSE]
-    lam[:] = 0.0
-    particle_start(short, mass, shaped, k, lam, 3)
+    warm = ints[I_WARM] != 0 and cs[0, WARM_OK] != 0.0
+    if warm:  # the previous step's answer (``SolverSettings.warm_start``)
+        for i in range(c):
+            for r in range(3):
+                lam[3 * i + r] = cs[i, WARM + r]
+    else:
+        lam[:] = 0.0
+        particle_start(short, mass, shaped, k, lam, 3)
     sweeps, converged = gauss_seidel(a, free, target, mu, lam, extra, 3, 1, tolerance, work)
     max_iterations = ints[I_MAX_ITERATIONS]
     steps = 0
     if not converged:
-        if ints[I_PARTICLE] == 0:
+        if ints[I_PARTICLE] == 0 and not warm:  # a warm start goes on from its probe
             peak = 0.0
             for i in range(c):
                 peak = max(peak, max(short[i], 0.0))
@@ -148,6 +159,11 @@ def solve(e, st, d):
             True,  # the probe's sweep decomposed A_tt into ``work``
         )
         sweeps += more
+    if ints[I_WARM] != 0:
+        for i in range(c):
+            for r in range(3):
+                cs[i, WARM + r] = lam[3 * i + r]
+        cs[0, WARM_OK] = 1.0 if converged else 0.0
     if not converged:
         dissipative(st, e, cs, owner, mass, linv, u, lam)
     add_impulses(st, e, cs, owner, lflat, rim, lam, 3, u, 1.0)
@@ -171,7 +187,7 @@ def report_of(tolerance: float):
     """The ``Kernel.report`` function: ``scene.report["contacts"]`` as numpy writes it, and
     its ``ContactSolverWarning`` when a solve was capped."""
 
-    def report(columns: np.ndarray) -> dict:
+    def report(columns: np.ndarray, counts: np.ndarray | None = None) -> dict:
         if len(columns) == 1:  # batch 1: Python floats, cheaper than five reductions
             row = columns[0].tolist()
             engaged, iterations, impacts = int(row[ENGAGED] > 0), row[ITERATIONS], row[IMPACTS]
@@ -185,6 +201,8 @@ def report_of(tolerance: float):
             newton = peak[NEWTON]
             capped = int(np.count_nonzero(columns[:, CAPPED]))
             touched = columns[:, TOUCHED] > 0
+        if counts is not None:  # several steps: the most of any one step, as numpy merges
+            engaged, capped = int(counts[:, 0].max()), int(counts[:, 1].max())
         # ContactReport(...) without the frozen dataclass's eight object.__setattr__ calls
         # (~1.5 µs of a ~10 µs batch-1 step); the same instance, fields set once.
         out = object.__new__(ContactReport)

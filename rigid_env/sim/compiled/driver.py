@@ -131,7 +131,8 @@ def generate(
         "",
         "",
         _JIT_NOGIL,
-        "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps):",
+        "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,",
+        "         steps):",
         "    size = x0.shape[0]",
         "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
         f"    contact = np.zeros((size, slots, {layout.CONTACT_WIDTH}))",
@@ -140,6 +141,7 @@ def generate(
         "        x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()",
         "        total = np.zeros_like(report)",
         "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
+        "    counts[:] = 0.0  # (steps, 2): per step, the engaged and the capped elements",
         "    bad_orientation = 0",
         "    diverged = 0",
         "    capped = 0",
@@ -160,6 +162,10 @@ def generate(
         "            if not finite(e, st):",
         "                verdict = 2",
         "                break",
+        f"            if report[e, {layout.ENGAGED}] > 0.0:",
+        "                counts[k, 0] += 1.0",
+        f"            if report[e, {layout.CAPPED}] > 0.0:",
+        "                counts[k, 1] += 1.0",
         "        if verdict == 0 and steps > 1:",
         "            fold(e, st, total)",
         "        if verdict == 1:",
@@ -249,15 +255,17 @@ class Driver:
         self._last = None
         self._entry = None
         self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
+        self._one_step_counts = np.empty((1, 2))
 
-    def report(self, columns) -> dict:
-        """``scene.report`` from the step's report columns, by the kernels that wrote them."""
+    def report(self, columns, counts=None) -> dict:
+        """``scene.report`` from the step's report columns, by the kernels that wrote them;
+        ``counts`` the per-step counts of a call of several steps (``__call__``), else None."""
         reporters = self._reporters
         if len(reporters) == 1:  # (the common case: a batch-1 step saves ~0.1 µs)
-            return reporters[0](columns)
+            return reporters[0](columns, counts)
         out = {}
         for fn in reporters:
-            out.update(fn(columns))
+            out.update(fn(columns, counts))
         return out
 
     def _shapes(self, shape):
@@ -273,9 +281,10 @@ class Driver:
     def __call__(self, x0, q0, v0, w0, force, torque, body_torque=None, steps=1):
         """``steps`` steps from the state arrays (float64, any batch shape and memory layout)
         and the validated loads (None or broadcastable). Returns the new arrays as (N, n, ·),
-        the report array (over several steps, its elementwise maximum over them), and the
+        the report array (over several steps, its elementwise maximum over them), the
         counts of elements with a quaternion off unit length, with a non-finite result and
-        with a contact solve stopped at its cap (``layout.CAPPED``)."""
+        with a contact solve stopped at its cap (``layout.CAPPED``) in some step, and per
+        step the counts of engaged and of capped elements ((steps, 2))."""
         shape = x0.shape
         last = self._last
         if last is None or last[0] != shape:
@@ -293,14 +302,19 @@ class Driver:
         # Fresh outputs (np.empty of a shape: ~0.1 µs cheaper than empty_like) and report.
         x, q, v, w = np.empty(flat), np.empty(qflat), np.empty(flat), np.empty(flat)
         report = np.zeros(rflat) if self.slots else zero_report
+        # A single step's counts are the report's own (the scene does not read these): one
+        # scratch array for all such calls, shared even by concurrent ones.
+        counts = self._one_step_counts if steps == 1 else np.empty((steps, 2))
         entry = self._entry
         if entry is None:
-            args = (x0, q0, v0, w0, x, q, v, w, force, torque, body, report)
+            args = (x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts)
             bad = self._dispatch(args, steps)
         else:
             data, slots = self.data, self.slots
-            bad = entry(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, data, slots, steps)
-        return x, q, v, w, report, bad
+            bad = entry(
+                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps
+            )
+        return x, q, v, w, report, bad, counts
 
     def _dispatch(self, args, steps) -> tuple[int, int, int]:
         """The step through numba's dispatcher (which compiles or loads it on the first call),
@@ -318,16 +332,20 @@ class Driver:
 
     def _threaded(self, args, steps) -> tuple[int, int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
-        Elements are independent, so the bits are those of the serial loop."""
+        Elements are independent, so the bits are those of the serial loop. Each chunk
+        counts its elements per step into its own array; the sums go into ``counts``."""
         size = args[0].shape[0]
         workers = min(self.workers, size)
         bounds = np.linspace(0, size, workers + 1).astype(int)
+        *arrays, counts = args
         chunks = [
-            tuple(a[lo:hi] for a in args) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+            (*(a[lo:hi] for a in arrays), np.empty_like(counts))
+            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
         ]
         step, data, slots = self.module.step, self.data, self.slots
-        counts = list(self.pool().map(lambda chunk: step(*chunk, data, slots, steps), chunks))
-        return tuple(sum(c[i] for c in counts) for i in range(3))
+        verdicts = list(self.pool().map(lambda chunk: step(*chunk, data, slots, steps), chunks))
+        counts[:] = sum(chunk[-1] for chunk in chunks)
+        return tuple(sum(v[i] for v in verdicts) for i in range(3))
 
     def pool(self):
         if self._pool is None:

@@ -24,7 +24,10 @@ PATH_GAP = 26  # the gap where the step's impacts left the contact (the detected
 IMPULSE = 27  # normal impulse of the step's impacts (the friction budget of the solve)
 U1 = 28  # 6, in a body's first slot: its (v, ω) after the velocity update (the energy guard)
 PATH_Q = 34  # 4, in a body's first slot: its orientation along the impacts' path (``Path``)
-CONTACT_WIDTH = 38
+# Kept between the steps of one call (``steps.carry`` zeroes the columns before WARM only):
+WARM = 38  # 3: the impulse (n, t₁, t₂) the previous step's solve ended with
+WARM_OK = 41  # in slot 0: 1.0 when that solve converged (``SolverSettings.warm_start``)
+CONTACT_WIDTH = 42
 
 # Columns of ``report`` (the contact solve's; see ``contacts.stages.ContactReport``).
 ENGAGED = 0  # 1.0 if the element had a contact within reach this step

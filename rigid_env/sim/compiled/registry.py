@@ -14,9 +14,10 @@ class Kernel:
 
     ``template``: the function is undecorated source calling ``wrench`` (an integrator), copied
     into the generated driver. ``slots``: contact slots it writes (detection), per element.
-    ``report``: for a kernel that writes ``report`` columns, ``report(columns) -> dict`` turns
-    the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy twin
-    writes ``ctx.report``).
+    ``report``: for a kernel that writes ``report`` columns, ``report(columns, counts) -> dict``
+    turns the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy
+    twin writes ``ctx.report``); ``counts`` is None, or for a call of several steps the
+    per-step counts of engaged and capped elements ((steps, 2), ``Driver.__call__``).
     """
 
     module: str
@@ -24,7 +25,7 @@ class Kernel:
     data: tuple = ()
     template: bool = False
     slots: int = 0
-    report: Callable[[np.ndarray], dict] | None = None
+    report: Callable[[np.ndarray, np.ndarray | None], dict] | None = None
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,21 @@ from __future__ import annotations
 import math
 
 from .cache import njit
-from .layout import CONTACT, DISPLACEMENT, Q0, REPORT, STEP_TUPLE_SIZE, V0, W0, X0, Q, V, W, X
+from .layout import (
+    CONTACT,
+    DISPLACEMENT,
+    Q0,
+    REPORT,
+    STEP_TUPLE_SIZE,
+    V0,
+    W0,
+    WARM,
+    X0,
+    Q,
+    V,
+    W,
+    X,
+)
 
 BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
@@ -71,7 +85,8 @@ def carry(e, st, total):
     """Between two steps of one call: the result becomes the state passed in (the start slots
     are the driver's own copies then), the contact slots are zeroed and the report row is
     folded into ``total`` (elementwise maximum) and zeroed: the next step sees what a call of
-    its own would (``begin`` does the rest)."""
+    its own would (``begin`` does the rest), but for the warm-start columns, which the contact
+    solve reads only with ``SolverSettings.warm_start``."""
     x0, q0, v0, w0 = st[X0], st[Q0], st[V0], st[W0]
     x, q, v, w = st[X], st[Q], st[V], st[W]
     for b in range(x.shape[1]):
@@ -83,7 +98,7 @@ def carry(e, st, total):
             q0[e, b, i] = q[e, b, i]
     contact = st[CONTACT]
     for c in range(contact.shape[1]):
-        for i in range(contact.shape[2]):
+        for i in range(WARM):  # the warm-start columns carry over (``layout``)
             contact[e, c, i] = 0.0
     report = st[REPORT]
     for i in range(report.shape[1]):

@@ -75,6 +75,14 @@ class SolverSettings:
         goes on from Newton's answer, up to ``max_iterations`` sweeps in all.
     newton_steps : Newton steps at most per solve, over all rounds (≥ 0; 0: Gauss–Seidel
         alone).
+    warm_start : False (default): every step's solve starts as above. True: in a
+        ``Scene.step(..., steps=k)`` call, a step whose previous step (of the same call)
+        converged with contacts engaged starts from that step's impulses instead (contact
+        slots are fixed per vertex, so slot i is the same contact), probes them with one
+        sweep and goes on from there (rounds and Newton as above); the first step of a call
+        starts cold. The answer meets the same tolerance; it is not bit for bit the answer
+        of k separate calls. On BoxLanding's rollout states (8 steps per call) it makes the
+        physics ~1.5× cheaper: the previous step's impulses are mostly already the answer.
     """
 
     max_iterations: int = MAX_ITERATIONS
@@ -83,8 +91,12 @@ class SolverSettings:
     start: str = "active_set"
     newton_after: int = NEWTON_AFTER
     newton_steps: int = NEWTON_STEPS
+    warm_start: bool = False
 
     def __post_init__(self):
+        if not isinstance(self.warm_start, (bool, np.bool_)):
+            raise ValueError(f"warm_start must be True or False, got {self.warm_start!r}")
+        object.__setattr__(self, "warm_start", bool(self.warm_start))
         for name, low in (
             ("max_iterations", 1),
             ("max_impacts", 1),
@@ -272,13 +284,15 @@ def converge(delassus, free, target, mu, lam, settings, extra):
     return lam, sweeps, converged, steps
 
 
-def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=None):
+def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=None, warm=None):
     """The step's inelastic solve for the engaged elements: velocities u (N, n, 6) after it,
-    sweeps (N,), converged (N,) and Newton steps (N,). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
+    sweeps (N,), converged (N,), Newton steps (N,) and the impulses λ (N, C, 3). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
     contact: the body may close the gap this step, no more — no tunnelling; Catto, "Contact
     Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
     impulse of this step's impacts, which friction may also use; ``gap`` (N, C) and
-    ``remaining`` (N,) the gaps and time left after the impacts (default: the step's)."""
+    ``remaining`` (N,) the gaps and time left after the impacts (default: the step's);
+    ``warm`` None or (λ (N, C, 3), usable (N,) bool): the start of the usable elements
+    (``SolverSettings.warm_start``), which then skip the particle and active-set starts."""
     free = rows.velocity(u, layout)
     if gap is None:
         gap, remaining = rows.gap, np.full(len(u), dt)
@@ -288,6 +302,10 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     # tells whether it already is the solution.
     lam = np.zeros(free.shape)
     particle_start(layout, short, lam[..., 0])
+    warmed = np.zeros(len(u), bool)
+    if warm is not None:
+        warmed = warm[1]
+        lam[warmed] = warm[0][warmed]
     probe = SolverSettings(1, settings.tolerance, settings.max_impacts, settings.start)
     lam, sweeps, converged = gauss_seidel(
         rows.delassus, free, target, layout.mu, lam, probe, extra=impulse
@@ -295,16 +313,16 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     steps = np.zeros(len(u), int)
     if not converged.all():
         rest = np.flatnonzero(~converged)
-        if settings.start == "particle":
-            start = lam[rest]
-        else:
-            sub = rows.take(rest)
+        start = lam[rest]  # a warm start goes on from its probe, as the particle start
+        cold = rest[~warmed[rest]]
+        if settings.start == "active_set" and len(cold):
+            sub = rows.take(cold)
             # Contacts that can carry load: the violated ones and those the step's largest
             # velocity correction could close (resting contacts whose v_n is rounding noise).
-            reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
-            reachable = (short[rest] > 0) | (gap[rest] <= reach)
-            start = active_set_start(
-                layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
+            reach = dt * np.max(np.maximum(short[cold], 0.0), axis=-1, keepdims=True)
+            reachable = (short[cold] > 0) | (gap[cold] <= reach)
+            start[~warmed[rest]] = active_set_start(
+                layout, short[cold], sub.delassus, free[cold, :, 1:], reachable, impulse[cold]
             )
         lam[rest], more, converged[rest], steps[rest] = converge(
             rows.delassus[rest], free[rest], target[rest], layout.mu, start, settings, impulse[rest]
@@ -316,7 +334,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
         z = scaled_velocity(layout, u[bad], sub.scale)[..., 0]
         dz = (lam[bad].reshape(len(bad), 1, -1) @ sub.jt)[:, 0]
         lam[bad], _ = dissipative(lam[bad], dz, z)
-    return u + rows.velocity_change(lam, layout), sweeps, converged, steps
+    return u + rows.velocity_change(lam, layout), sweeps, converged, steps, lam
 
 
 def dissipative(lam, dz, z):

@@ -187,6 +187,7 @@ class SolveContacts:
         touched = np.zeros(size, bool)
         if len(idx) == 0:
             ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance, touched=touched)
+            ctx.warm = None
             return
         rows = hits["rows"]
         impulse = hits.get("impulse")
@@ -201,9 +202,17 @@ class SolveContacts:
             if np.any(path.elapsed > 0):
                 rows = rows.moved(self.layout, u, path.translation)
         u_in = u
-        u, sweeps, converged, newton_steps = solve_inelastic(
-            self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining
+        warm = None
+        if ctx.warm is not None:  # the previous step's (λ, converged) over the whole batch
+            warm = (ctx.warm[0][idx], ctx.warm[1][idx])
+        u, sweeps, converged, newton_steps, lam = solve_inelastic(
+            self.layout, rows, u, impulse, ctx.dt, settings, gap, remaining, warm
         )
+        if settings.warm_start:  # the next step of this call starts where this one ended
+            full = np.zeros((size, *lam.shape[1:]))
+            ok = np.zeros(size, bool)
+            full[idx], ok[idx] = lam, converged
+            ctx.warm = (full, ok)
         _write(ctx, idx, u)
         touched[idx] = np.any(impulse > 0, axis=-1) | np.any(u != u_in, axis=(-1, -2))
         impact_capped = hits.get("impact_capped")
