@@ -145,7 +145,8 @@ class Scene:
         self.pipeline: tuple = (*self.forces, *steps)
         self.timer = timer
         self._report: dict | None = {}
-        self._report_columns: np.ndarray | None = None  # a compiled step's, while unread
+        # a compiled step's report columns and per-step counts (``Driver.__call__``), unread
+        self._report_columns: tuple[np.ndarray, np.ndarray | None] | None = None
         self._known_shapes: tuple = ((), ())
         self._driver = driver_for(self, self.backend)
         self.backend = "numpy" if self._driver is None else "compiled"
@@ -158,9 +159,9 @@ class Scene:
         stopped at its cap builds it at once, so its ``ContactSolverWarning`` comes with the
         step."""
         report = self._report
-        if report is None:
+        if report is None and self._report_columns is not None:  # (set together)
             report = self._report = self._driver.report(*self._report_columns)
-        return report
+        return report or {}
 
     @report.setter
     def report(self, value: dict) -> None:
