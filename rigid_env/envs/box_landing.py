@@ -138,7 +138,7 @@ m g z, J), the reward terms ``reward_*`` (0 at a reset) and ``is_success`` (``bo
 | ``face_weight``, ``spin_weight``, ``bounce_weight``, ``action_weight``, ``success_bonus`` | 1, 0.05, 0.5, 0.01, 10 | reward terms (table above) |
 | ``spin_scale``           | ``None``         | observation scale of Ω, rad/s; ``None``: ``spin_range`` high (at least 1 rad/s) |
 | ``backend``              | ``None``         | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
-| ``contact_solver``       | ``CONTACT_SOLVER`` | the contact solve's ``rigid_env.sim.SolverSettings``; the default warm-starts an action's physics steps after its first from the previous step's impulses: the same tolerance, ~1.5× cheaper physics on this task than ``SolverSettings()`` |
+| ``contact_solver``       | ``CONTACT_SOLVER`` | the contact solve's ``rigid_env.sim.SolverSettings``; the default warm-starts an action's physics steps after its first from the previous step's impulses: the same tolerance, ~1.4× cheaper physics on this task than ``SolverSettings()`` |
 | ``render_mode``          | ``None``         | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 
 Why these defaults: the box is the simulator's landing scene. A fall of 1–2 m takes 0.45–0.64 s
@@ -208,10 +208,12 @@ def _face_index(value: Any, name: str = "target_face") -> np.ndarray | int:
 
 # The contact solve of this task's scene (see ``contact_solver`` in the module docstring). On
 # BoxLanding's rollout states, 8 physics steps per call (512 envs, random actions, replayed
-# through the compiled step), µs per element and physics step: SolverSettings() 6.5,
-# warm_start 4.2, with as many capped solves (0.3 % of the calls with contacts in each).
-# newton_after 3 would give 3.85, but then the backends' answers on the 8 tumbling boxes of
-# tests/sim/test_compiled_contacts.py differ by 4× the bound derived there: not taken.
+# through the compiled step), µs per element and physics step: SolverSettings() 6.4,
+# warm_start 4.5, with the same capped solves (0.3 % of the calls with contacts); on a trained
+# PPO policy's states 6.2 and 5.5. Going on from a failed warm probe instead of the cold start
+# gave 4.2 and 5.2, but 10-18 % more capped solves; newton_after 3 would give 3.85, but the
+# backends' answers on the 8 tumbling boxes of tests/sim/test_compiled_contacts.py then differ
+# by 4× the bound derived there: neither taken.
 CONTACT_SOLVER = sim.SolverSettings(warm_start=True)
 
 

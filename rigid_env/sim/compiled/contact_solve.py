@@ -135,7 +135,9 @@ def solve(e, st, d):
     max_iterations = ints[I_MAX_ITERATIONS]
     steps = 0
     if not converged:
-        if ints[I_PARTICLE] == 0 and not warm:  # a warm start goes on from its probe
+        # A warm start that fails its probe goes on as a cold solve (the active-set start
+        # sets every entry of lam): warm-started solves are capped no more often.
+        if ints[I_PARTICLE] == 0:
             peak = 0.0
             for i in range(c):
                 peak = max(peak, max(short[i], 0.0))

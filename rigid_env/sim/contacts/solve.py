@@ -78,11 +78,13 @@ class SolverSettings:
     warm_start : False (default): every step's solve starts as above. True: in a
         ``Scene.step(..., steps=k)`` call, a step whose previous step (of the same call)
         converged with contacts engaged starts from that step's impulses instead (contact
-        slots are fixed per vertex, so slot i is the same contact), probes them with one
-        sweep and goes on from there (rounds and Newton as above); the first step of a call
-        starts cold. The answer meets the same tolerance; it is not bit for bit the answer
-        of k separate calls. On BoxLanding's rollout states (8 steps per call) it makes the
-        physics ~1.5× cheaper: the previous step's impulses are mostly already the answer.
+        slots are fixed per vertex, so slot i is the same contact) and probes them with one
+        sweep instead of the particle start; a probe that fails goes on as a cold solve, so
+        no more solves reach the cap. The first step of a call starts cold. The answer meets
+        the same tolerance; it is not bit for bit the answer of k separate calls (where the
+        friction problem has several solutions, not even the same solution). On
+        BoxLanding's rollout states (8 steps per call) it makes the physics ~1.4× cheaper:
+        the previous step's impulses are mostly already the answer.
     """
 
     max_iterations: int = MAX_ITERATIONS
@@ -291,8 +293,8 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
     impulse of this step's impacts, which friction may also use; ``gap`` (N, C) and
     ``remaining`` (N,) the gaps and time left after the impacts (default: the step's);
-    ``warm`` None or (λ (N, C, 3), usable (N,) bool): the start of the usable elements
-    (``SolverSettings.warm_start``), which then skip the particle and active-set starts."""
+    ``warm`` None or (λ (N, C, 3), usable (N,) bool): what the probe sweep starts from for the
+    usable elements instead of the particle start (``SolverSettings.warm_start``)."""
     free = rows.velocity(u, layout)
     if gap is None:
         gap, remaining = rows.gap, np.full(len(u), dt)
@@ -302,10 +304,8 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     # tells whether it already is the solution.
     lam = np.zeros(free.shape)
     particle_start(layout, short, lam[..., 0])
-    warmed = np.zeros(len(u), bool)
     if warm is not None:
-        warmed = warm[1]
-        lam[warmed] = warm[0][warmed]
+        lam[warm[1]] = warm[0][warm[1]]
     probe = SolverSettings(1, settings.tolerance, settings.max_impacts, settings.start)
     lam, sweeps, converged = gauss_seidel(
         rows.delassus, free, target, layout.mu, lam, probe, extra=impulse
@@ -313,16 +313,18 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     steps = np.zeros(len(u), int)
     if not converged.all():
         rest = np.flatnonzero(~converged)
-        start = lam[rest]  # a warm start goes on from its probe, as the particle start
-        cold = rest[~warmed[rest]]
-        if settings.start == "active_set" and len(cold):
-            sub = rows.take(cold)
+        # A warm start that fails its probe goes on as a cold solve (the same rounds from the
+        # same start): warm-started solves are capped no more often than cold ones.
+        if settings.start == "particle":
+            start = lam[rest]
+        else:
+            sub = rows.take(rest)
             # Contacts that can carry load: the violated ones and those the step's largest
             # velocity correction could close (resting contacts whose v_n is rounding noise).
-            reach = dt * np.max(np.maximum(short[cold], 0.0), axis=-1, keepdims=True)
-            reachable = (short[cold] > 0) | (gap[cold] <= reach)
-            start[~warmed[rest]] = active_set_start(
-                layout, short[cold], sub.delassus, free[cold, :, 1:], reachable, impulse[cold]
+            reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
+            reachable = (short[rest] > 0) | (gap[rest] <= reach)
+            start = active_set_start(
+                layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
             )
         lam[rest], more, converged[rest], steps[rest] = converge(
             rows.delassus[rest], free[rest], target[rest], layout.mu, start, settings, impulse[rest]
