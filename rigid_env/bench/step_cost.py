@@ -81,7 +81,7 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     out["driver call"] = best_us(lambda: drv(x0, q0, v0, w0, None, None), block_s, repeats)
     _, flat, qflat, rflat, zero, _ = drv._last
     outputs = (np.empty(flat), np.empty(qflat), np.empty(flat), np.empty(flat))
-    report, counts = np.zeros(rflat), np.zeros((1, 2))
+    report, counts = np.zeros(rflat), np.zeros((1, 3))
     args = (x0, q0, v0, w0, *outputs, zero, zero, zero, report, counts, drv.data, drv.slots, 1)
     entry = drv._entry
     out["kernel"] = best_us(lambda: entry(*args), block_s, repeats)

@@ -211,9 +211,9 @@ def _face_index(value: Any, name: str = "target_face") -> np.ndarray | int:
 # through the compiled step), µs per element and physics step: SolverSettings() 6.4,
 # warm_start 4.5, with the same capped solves (0.3 % of the calls with contacts); on a trained
 # PPO policy's states 6.2 and 5.5. Going on from a failed warm probe instead of the cold start
-# gave 4.2 and 5.2, but 10-18 % more capped solves; newton_after 3 would give 3.85, but the
-# backends' answers on the 8 tumbling boxes of tests/sim/test_compiled_contacts.py then differ
-# by 4× the bound derived there: neither taken.
+# gave 4.2 and 5.2, but 10-18 % more capped solves; with that, newton_after 3 gave 3.85
+# against 4.2, but the backends' answers on the 8 tumbling boxes of
+# tests/sim/test_compiled_contacts.py then differ by 4× the bound derived there: neither taken.
 CONTACT_SOLVER = sim.SolverSettings(warm_start=True)
 
 

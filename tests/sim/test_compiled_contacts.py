@@ -276,7 +276,12 @@ def test_compiled_warm_start_matches_numpy_call_by_call(name):
         ref = numpy_scene.step(state, steps=WARM_CALL)
         out = compiled_scene.step(state, steps=WARM_CALL)
         a, b = numpy_scene.report["contacts"], compiled_scene.report["contacts"]
-        assert (b.engaged, b.impacts, b.capped) == (a.engaged, a.impacts, a.capped)
+        assert (b.engaged, b.impacts, b.capped, b.warm_started) == (
+            a.engaged,
+            a.impacts,
+            a.capped,
+            a.warm_started,
+        )
         sweeps = max(a.iterations, b.iterations)
         bound = np.inf if a.capped else 2 * WARM_CALL * step_bound(settings.tolerance, sweeps)
         for field in ("position", "orientation", "linear_velocity", "angular_velocity"):

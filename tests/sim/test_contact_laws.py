@@ -436,8 +436,9 @@ def test_solver_settings_are_validated_and_a_cap_is_reported():
 def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(monkeypatch):
     # A box stuck on an incline needs the active-set start every step when cold (the particle
     # start has no friction). Warm, only the call's first step does: the later ones start
-    # from the previous step's impulses, which are the answer (the box is at rest). The
-    # result is rest either way (the static-friction test above), within the same tolerance.
+    # from the previous step's impulses, which are the answer (the box is at rest), and the
+    # report counts the element as warm-started (the most of any one step: 1). The result is
+    # rest either way (the static-friction test above), within the same tolerance.
     from rigid_env.sim.contacts import solve
 
     calls = []
@@ -447,9 +448,8 @@ def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(mo
         calls.append(len(args[1]))
         return original(*args)
 
-    monkeypatch.setattr(solve, "active_set_start", spy)
+    monkeypatch.setattr(solve, "active_set_start", spy)  # numpy's; the compiled has its own
     theta = 0.3
-    results = {}
     for warm in (False, True):
         scene = sim.Scene(
             sim.Body.box((0.2, 0.2, 0.1), 1.0),
@@ -457,15 +457,18 @@ def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(mo
             gravity=(G * np.sin(theta), 0.0, -G * np.cos(theta)),
             ground=sim.Ground(0.0, 0.5),
             contact_solver=sim.SolverSettings(warm_start=warm),
-            backend="numpy",
         )
         start = scene.initial_state(position=(0, 0, 0.1))
         calls.clear()
-        results[warm] = scene.step(start, steps=CHUNK)
-        assert len(calls) == (1 if warm else CHUNK)
-    for field in ("linear_velocity", "angular_velocity"):
-        np.testing.assert_allclose(getattr(results[True], field), 0.0, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(getattr(results[False], field), 0.0, rtol=0, atol=1e-9)
+        result = scene.step(start, steps=CHUNK)
+        report = scene.report["contacts"]
+        assert (report.engaged, report.warm_started, report.capped) == (1, int(warm), 0)
+        if scene.backend == "numpy":
+            assert len(calls) == (1 if warm else CHUNK)
+        scene.step(result)  # a new call's first step starts cold, whatever came before
+        assert scene.report["contacts"].warm_started == 0
+        for field in ("linear_velocity", "angular_velocity"):
+            np.testing.assert_allclose(getattr(result, field), 0.0, rtol=0, atol=1e-9)
 
 
 def test_warm_start_setting_is_validated():

@@ -3,8 +3,8 @@
 
 Order as numpy's: free contact velocities and targets (the gaps where the impacts left them,
 over the time left), the particle start (or the previous step's impulses, kept in the contact
-slots' ``WARM`` columns, with ``SolverSettings.warm_start``) probed by one sweep, then rounds of Gauss–Seidel with
-Newton polishes (``contact_newton.converge``) from the particle start or from the active-set
+slots' ``WARM`` columns, with ``SolverSettings.warm_start``) probed by one sweep, then rounds
+of Gauss–Seidel with Newton polishes (``contact_newton.converge``) from the particle start or from the active-set
 start (``SolverSettings.start``), and an unconverged impulse cut back so it adds no kinetic
 energy (``dissipative``). A cached ``solve`` is recompiled when any simulator source changes
 (``cache.py``), so an edit of ``contact_starts`` reaches it.
@@ -53,6 +53,7 @@ from .layout import (
     UNPAID_ENERGY,
     WARM,
     WARM_OK,
+    WARMED,
 )
 from .registry import Kernel, register
 
@@ -125,6 +126,7 @@ def solve(e, st, d):
         extra[i] = cs[i, IMPULSE]
     warm = ints[I_WARM] != 0 and cs[0, WARM_OK] != 0.0
     if warm:  # the previous step's answer (``SolverSettings.warm_start``)
+        report[e, WARMED] = 1.0
         for i in range(c):
             for r in range(3):
                 lam[3 * i + r] = cs[i, WARM + r]
@@ -193,7 +195,7 @@ def report_of(tolerance: float):
         if len(columns) == 1:  # batch 1: Python floats, cheaper than five reductions
             row = columns[0].tolist()
             engaged, iterations, impacts = int(row[ENGAGED] > 0), row[ITERATIONS], row[IMPACTS]
-            newton = row[NEWTON]
+            newton, warmed = row[NEWTON], int(row[WARMED] > 0)
             capped, unpaid = int(row[CAPPED] > 0), row[UNPAID_ENERGY]
             touched = np.array([row[TOUCHED] > 0])
         else:
@@ -202,9 +204,10 @@ def report_of(tolerance: float):
             iterations, impacts, unpaid = peak[ITERATIONS], peak[IMPACTS], peak[UNPAID_ENERGY]
             newton = peak[NEWTON]
             capped = int(np.count_nonzero(columns[:, CAPPED]))
+            warmed = int(np.count_nonzero(columns[:, WARMED]))
             touched = columns[:, TOUCHED] > 0
         if counts is not None:  # several steps: the most of any one step, as numpy merges
-            engaged, capped = int(counts[:, 0].max()), int(counts[:, 1].max())
+            engaged, capped, warmed = (int(m) for m in counts.max(axis=0))
         # ContactReport(...) without the frozen dataclass's eight object.__setattr__ calls
         # (~1.5 µs of a ~10 µs batch-1 step); the same instance, fields set once.
         out = object.__new__(ContactReport)
@@ -216,6 +219,7 @@ def report_of(tolerance: float):
             impacts=int(impacts),
             newton=int(newton),
             capped=capped,
+            warm_started=warmed,
             tolerance=tolerance,
             unpaid_energy=float(unpaid),
             touched=touched,

@@ -141,7 +141,7 @@ def generate(
         "        x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()",
         "        total = np.zeros_like(report)",
         "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
-        "    counts[:] = 0.0  # (steps, 2): per step, the engaged and the capped elements",
+        "    counts[:] = 0.0  # (steps, 3): per step, the engaged, capped and warm-started elements",
         "    bad_orientation = 0",
         "    diverged = 0",
         "    capped = 0",
@@ -162,10 +162,17 @@ def generate(
         "            if not finite(e, st):",
         "                verdict = 2",
         "                break",
-        f"            if report[e, {layout.ENGAGED}] > 0.0:",
-        "                counts[k, 0] += 1.0",
-        f"            if report[e, {layout.CAPPED}] > 0.0:",
-        "                counts[k, 1] += 1.0",
+    ]
+    if any(kernel.report is not None for kernel in kernels):  # only stages that report count
+        lines += [
+            f"            if report[e, {layout.ENGAGED}] > 0.0:",
+            "                counts[k, 0] += 1.0",
+            f"            if report[e, {layout.CAPPED}] > 0.0:",
+            "                counts[k, 1] += 1.0",
+            f"            if report[e, {layout.WARMED}] > 0.0:",
+            "                counts[k, 2] += 1.0",
+        ]
+    lines += [
         "        if verdict == 0 and steps > 1:",
         "            fold(e, st, total)",
         "        if verdict == 1:",
@@ -255,7 +262,7 @@ class Driver:
         self._last = None
         self._entry = None
         self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
-        self._one_step_counts = np.empty((1, 2))
+        self._one_step_counts = np.empty((1, 3))
 
     def report(self, columns, counts=None) -> dict:
         """``scene.report`` from the step's report columns, by the kernels that wrote them;
@@ -284,7 +291,7 @@ class Driver:
         the report array (over several steps, its elementwise maximum over them), the
         counts of elements with a quaternion off unit length, with a non-finite result and
         with a contact solve stopped at its cap (``layout.CAPPED``) in some step, and per
-        step the counts of engaged and of capped elements ((steps, 2))."""
+        step the counts of engaged, capped and warm-started elements ((steps, 3))."""
         shape = x0.shape
         last = self._last
         if last is None or last[0] != shape:
@@ -304,7 +311,7 @@ class Driver:
         report = np.zeros(rflat) if self.slots else zero_report
         # A single step's counts are the report's own (the scene does not read these): one
         # scratch array for all such calls, shared even by concurrent ones.
-        counts = self._one_step_counts if steps == 1 else np.empty((steps, 2))
+        counts = self._one_step_counts if steps == 1 else np.empty((steps, 3))
         entry = self._entry
         if entry is None:
             args = (x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts)

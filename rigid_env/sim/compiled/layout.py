@@ -38,4 +38,5 @@ UNPAID_ENERGY = 4  # energy excess (J) the guard could not remove
 TOUCHED = 5  # 1.0 if a contact carried an impulse this step
 ELAPSED = 6  # scratch, not reported: time into the step of the last impact (``Path.elapsed``)
 NEWTON = 7  # Newton steps of its solve's polish
-REPORT_WIDTH = 8
+WARMED = 8  # 1.0 if its solve started from the previous step's impulses
+REPORT_WIDTH = 9

@@ -17,7 +17,8 @@ class Kernel:
     ``report``: for a kernel that writes ``report`` columns, ``report(columns, counts) -> dict``
     turns the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy
     twin writes ``ctx.report``); ``counts`` is None, or for a call of several steps the
-    per-step counts of engaged and capped elements ((steps, 2), ``Driver.__call__``).
+    per-step counts of engaged, capped and warm-started elements ((steps, 3),
+    ``Driver.__call__``).
     """
 
     module: str

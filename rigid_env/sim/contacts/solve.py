@@ -79,8 +79,9 @@ class SolverSettings:
         ``Scene.step(..., steps=k)`` call, a step whose previous step (of the same call)
         converged with contacts engaged starts from that step's impulses instead (contact
         slots are fixed per vertex, so slot i is the same contact) and probes them with one
-        sweep instead of the particle start; a probe that fails goes on as a cold solve, so
-        no more solves reach the cap. The first step of a call starts cold. The answer meets
+        sweep instead of the particle start; with the active-set start, a probe that fails
+        goes on as a cold solve, so no more solves reach the cap (with ``"particle"`` it goes
+        on from the probed impulses). The first step of a call starts cold. The answer meets
         the same tolerance; it is not bit for bit the answer of k separate calls (where the
         friction problem has several solutions, not even the same solution). On
         BoxLanding's rollout states (8 steps per call) it makes the physics ~1.4× cheaper:
@@ -288,7 +289,8 @@ def converge(delassus, free, target, mu, lam, settings, extra):
 
 def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=None, warm=None):
     """The step's inelastic solve for the engaged elements: velocities u (N, n, 6) after it,
-    sweeps (N,), converged (N,), Newton steps (N,) and the impulses λ (N, C, 3). Targets ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
+    sweeps (N,), converged (N,), Newton steps (N,) and the impulses λ (N, C, 3). Targets
+    ``v_n ≥ −d/Δt`` for a gap d > 0 (a speculative
     contact: the body may close the gap this step, no more — no tunnelling; Catto, "Contact
     Manifolds", 2014 / Box2D v3) and ``v_n ≥ 0`` for d ≤ 0; ``impulse`` (N, C) is the normal
     impulse of this step's impacts, which friction may also use; ``gap`` (N, C) and
@@ -314,7 +316,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
     if not converged.all():
         rest = np.flatnonzero(~converged)
         # A warm start that fails its probe goes on as a cold solve (the same rounds from the
-        # same start): warm-started solves are capped no more often than cold ones.
+        # active-set start): warm-started solves are capped no more often than cold ones.
         if settings.start == "particle":
             start = lam[rest]
         else:

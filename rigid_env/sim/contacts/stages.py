@@ -54,6 +54,8 @@ class ContactReport:
     ``impacts``: the most
     impact events of any element; ``capped``: elements whose solve stopped at
     ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
+    ``warm_started``: elements whose solve started from the previous step's impulses
+    (``SolverSettings.warm_start``; 0 in a call's first step);
     ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
     largest energy excess (J) the energy guard could not take out of the kinetic energy (0
     in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
@@ -67,6 +69,7 @@ class ContactReport:
     impacts: int = 0
     newton: int = 0
     capped: int = 0
+    warm_started: int = 0
     tolerance: float = 0.0
     unpaid_energy: float = 0.0
     touched: np.ndarray | None = None
@@ -224,6 +227,7 @@ class SolveContacts:
             newton=int(newton_steps.max()),
             impacts=0 if events is None else int(events.max()),
             capped=int(np.sum(capped)),
+            warm_started=0 if warm is None else int(np.sum(warm[1])),
             tolerance=settings.tolerance,
             touched=touched,
         )
