@@ -341,6 +341,9 @@ class Driver:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
         Elements are independent, so the bits are those of the serial loop. Each chunk
         counts its elements per step into its own array; the sums go into ``counts``."""
+        # One chunk per thread although the two halves of BoxLanding's trained-policy states
+        # differ by 5 % in cost (capped solves): four per thread, taken as threads free up,
+        # measured no faster (3.00-3.14 µs per element step against 2.94-3.05).
         size = args[0].shape[0]
         workers = min(self.workers, size)
         bounds = np.linspace(0, size, workers + 1).astype(int)
