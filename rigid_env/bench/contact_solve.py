@@ -9,7 +9,8 @@ scene at the speed bench's Δt = 0.01 s: ``--dt 0.01 --steps 100 --landing-batch
 landing``).
 
 ``--rollout boxlanding --episodes N`` instead steps ``RigidEnv/BoxLanding-v0`` (one env) under
-seeded random actions and, beside it, the env's own scene one physics step at a time from the
+seeded random actions (or a saved stable-baselines3 policy's, ``--policy model.zip``: a trained
+lander keeps its box in contact more, where the hard solves are) and, beside it, the env's own scene one physics step at a time from the
 env's state, so every contact step's solve is seen alone: it prints the contact steps, the share
 capped, the mean / median / max sweeps, the share of all sweeps spent in capped steps and the
 Newton steps (``python -m rigid_env.bench.contact_solve --rollout boxlanding --episodes 20``).
@@ -20,6 +21,8 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -139,9 +142,11 @@ def rollout_boxlanding(
     seed: int = 0,
     backend: str = "auto",
     settings: sim.SolverSettings | None = None,
+    policy: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> dict:
     """Per-physics-step contact statistics of ``episodes`` BoxLanding episodes under random
-    actions (``seed`` seeds the env and its action space). The env steps as usual; before each
+    actions (``seed`` seeds the env and its action space), or under ``policy`` (observation →
+    action) when given. The env steps as usual; before each
     action a copy of its scene (``backend``) steps the same state with the same body torque one
     physics step at a time, ``frame_skip`` times, and its reports are collected (and the wall
     time of those steps, ``settings`` the scene's solver settings)."""
@@ -170,10 +175,10 @@ def rollout_boxlanding(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sim.ContactSolverWarning)
         for episode in range(episodes):
-            env.reset(seed=seed + episode)
+            obs, _ = env.reset(seed=seed + episode)
             done = False
             while not done:
-                action = env.action_space.sample()
+                action = env.action_space.sample() if policy is None else policy(obs)
                 torque = (action * task.max_torque)[None, None, :]
                 state = task.state
                 for _ in range(task.frame_skip):
@@ -186,7 +191,7 @@ def rollout_boxlanding(
                         sweeps.append(report.iterations)
                         capped.append(report.capped > 0)
                         newton.append(report.newton)
-                _, _, terminated, truncated, _ = env.step(action)
+                obs, _, terminated, truncated, _ = env.step(action)
                 done = terminated or truncated
     env.close()
     sweeps_a = np.array(sweeps, dtype=float)
@@ -204,6 +209,21 @@ def rollout_boxlanding(
         "newton_solves": int(np.count_nonzero(newton)),
         "step_us": 1e6 * seconds / max(steps, 1),
     }
+
+
+def saved_policy(path: str, algo: str = "ppo") -> Callable[[np.ndarray], np.ndarray]:
+    """observation → action of a saved stable-baselines3 model (``algo`` "ppo" or "sac"),
+    deterministic, as an evaluation acts."""
+    try:
+        from stable_baselines3 import PPO, SAC
+    except ImportError:
+        raise SystemExit(
+            "--policy needs stable-baselines3: pip install torch==2.13.0 -e '.[rl]'"
+        ) from None
+    if not Path(path).is_file():
+        raise SystemExit(f"--policy: no such file: {path}")
+    model = {"ppo": PPO, "sac": SAC}[algo].load(path, device="cpu")
+    return lambda obs: model.predict(obs, deterministic=True)[0]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -240,13 +260,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--newton-steps", type=int, default=None, help="SolverSettings.newton_steps (rollout)"
     )
+    parser.add_argument(
+        "--policy",
+        default=None,
+        help="rollout actions from this saved stable-baselines3 model (.zip; deterministic) "
+        "instead of random ones; needs the rl extra",
+    )
+    parser.add_argument(
+        "--algo", default="ppo", choices=["ppo", "sac"], help="the --policy model's algorithm"
+    )
     args = parser.parse_args(argv)
     if args.rollout:
         chosen = {"newton_after": args.newton_after, "newton_steps": args.newton_steps}
         settings = sim.SolverSettings(**{k: v for k, v in chosen.items() if v is not None})
-        r = rollout_boxlanding(args.episodes, args.seed, args.backend, settings)
+        policy = None if args.policy is None else saved_policy(args.policy, args.algo)
+        r = rollout_boxlanding(args.episodes, args.seed, args.backend, settings, policy)
+        actions = "random actions" if args.policy is None else f"policy {args.policy}"
         print(
-            f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, backend {args.backend}: "
+            f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, {actions}, "
+            f"backend {args.backend}: "
             f"{r['contact_steps']} contact steps, capped {100 * r['capped_share']:.2f} %, "
             f"sweeps mean {r['mean_sweeps']:.1f} median {r['median_sweeps']:.0f} "
             f"max {r['max_sweeps']}, share of sweeps in capped steps "
