@@ -228,3 +228,92 @@ def test_newton_settings_are_validated(sim_backend, name, value):
     with pytest.raises(ValueError, match=name):
         sim.SolverSettings(**{name: value})
     assert sim.SolverSettings(**{name: 1}).__getattribute__(name) == 1  # the next call works
+
+
+# Two steps of a BoxLanding-v0 rollout under a trained PPO policy where the Newton polish stalls
+# on a change of contact mode it cannot see (``newton.CRAWL_STEP``'s note): without jumps along
+# G's null direction both stop at the cap. (position, orientation, velocity, angular velocity,
+# body torque) before the step.
+STALLS = {
+    "after an impact": (
+        [-0.18883042278527906, 0.159609038913498, 0.2002247011516451],
+        [0.00019336544245523483, 0.0007219133802784401, -0.9656362980150791, -0.2598960973285488],
+        [-0.030141478060073834, 0.03198859458841607, -0.09587513285986526],
+        [-0.5547282835116276, 0.32219655732148433, 0.32387846725147645],
+        [-0.6255986094474792, 0.22248294949531555, -0.22121697664260864],
+    ),
+    "settling on a face": (
+        [-0.009102139901015032, 0.12292576402910617, 0.20008367569039776],
+        [0.0001895257817476403, 0.00037278951253777605, 0.45319304230770896, -0.8914123016381591],
+        [0.029061341908146424, -0.03984934827435047, -0.024566172668431557],
+        [0.19906166473143683, 0.1451717368057606, -1.3877787807814457e-17],
+        [-0.07756172865629196, -0.5876874327659607, -0.21998272836208344],
+    ),
+}
+
+
+def stalled_step(scene, name):
+    x, q, v, w, torque = STALLS[name]
+    state = scene.initial_state(position=x, orientation=q, linear_velocity=v, angular_velocity=w)
+    scene.step(state, body_torque=[torque])
+    return scene.report["contacts"]
+
+
+@pytest.mark.parametrize("name", STALLS)
+def test_newton_jumps_past_the_mode_change_that_stalls_it(sim_backend, name):
+    report = stalled_step(landing_scene(), name)
+    assert report.engaged == 1 and report.newton > 0
+    assert report.capped == 0
+
+
+@pytest.mark.parametrize("name", STALLS)
+@pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
+def test_without_jumps_those_steps_are_capped(sim_backend, name, monkeypatch):
+    # The kernels read JUMPS when they compile, so this runs the numpy path on either backend.
+    monkeypatch.setattr(newton_module, "JUMPS", 0)
+    assert stalled_step(landing_scene(backend="numpy"), name).capped == 1
+
+
+def test_quadratic_roots_are_the_real_roots(sim_backend):
+    rng = np.random.default_rng(0)
+    c0, c1, c2 = rng.normal(size=(3, 200))
+    c2[:20] = 0.0  # linear
+    c1[:5] = 0.0  # and constant: no root
+    roots = newton_module.quadratic_roots(c0, c1, c2)
+    for k in range(200):
+        expected = np.roots([c2[k], 2 * c1[k], c0[k]])
+        expected = np.sort(expected[np.abs(expected.imag) == 0].real)
+        found = np.sort(roots[k][np.isfinite(roots[k])])
+        assert len(found) == len(expected)
+        # Both are backward stable: each root is exact for coefficients perturbed by a few ε
+        # relative, so it errs by at most that perturbation of p over |p'| (the condition of a
+        # simple root: Wilkinson, "Rounding Errors in Algebraic Processes", 1963); 100 ε covers
+        # both computations' few roundings.
+        size = np.abs(c2[k]) * expected**2 + 2 * np.abs(c1[k] * expected) + np.abs(c0[k])
+        slope = np.abs(2 * c2[k] * expected + 2 * c1[k])
+        assert np.all(np.abs(found - expected) <= 100 * EPS * size / slope)
+
+
+def test_mode_events_are_where_a_contact_changes_mode(sim_backend, monkeypatch):
+    a, free, target, mu, extra, _ = contact_problem(monkeypatch)
+    rng = np.random.default_rng(1)
+    lam = np.abs(rng.normal(scale=0.05, size=free.shape))
+    x = rng.normal(size=(1, free[0].size))
+    x /= np.linalg.norm(x)
+
+    def mode_at(s):
+        parts = newton_module.residual(a, free, target, mu, extra, lam + s * x.reshape(lam.shape))
+        return newton_module.mode(*parts[2:])[0]
+
+    _, _, z_n, z_t, rho = newton_module.residual(a, free, target, mu, extra, lam)
+    events = newton_module.mode_events(a, mu, extra, z_n, z_t, x)[0]
+    events = np.sort(events[np.isfinite(events)])
+    assert len(events) > 0
+    # Across each event some contact's mode flips (1e-7 relative: far above the roots'
+    # rounding, below the gaps between events, checked); between events none does.
+    assert np.all(np.diff(events) > 1e-6 * np.abs(events[1:]))
+    for s in events:
+        assert np.any(mode_at(s * (1 - 1e-7)) != mode_at(s * (1 + 1e-7)))
+    for lo, hi in zip(events[:-1], events[1:], strict=True):
+        inside = [mode_at(s) for s in np.linspace(lo, hi, 12)[1:-1]]
+        assert all(np.array_equal(m, inside[0]) for m in inside)

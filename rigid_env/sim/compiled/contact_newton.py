@@ -11,7 +11,19 @@ import math
 
 import numpy as np
 
-from ..contacts.newton import ARMIJO, GAIN, HALVINGS, MARGIN, RIDGE
+from ..contacts.newton import (
+    ARMIJO,
+    CRAWL_DECREASE,
+    CRAWL_STEP,
+    GAIN,
+    HALVINGS,
+    JUMP_FLOOR,
+    JUMP_GROWTH,
+    JUMP_PAST,
+    JUMPS,
+    MARGIN,
+    RIDGE,
+)
 from . import cholesky
 from .cache import njit
 from .contact_gauss_seidel import gauss_seidel, velocity_scale
@@ -109,6 +121,129 @@ def least_squares_step(g, f, normal, step):
 
 
 @njit(cache=True, error_model="numpy")
+def mode_changed(zn, zt, rho, zn0, zt0, rho0):
+    """Whether any contact's mode (z_n > 0; |z_t| > ρ) differs between the two points."""
+    for i in range(zn.shape[0]):
+        if (zn[i] > 0) != (zn0[i] > 0):
+            return True
+        out = math.sqrt(zt[i, 0] * zt[i, 0] + zt[i, 1] * zt[i, 1]) > rho[i]
+        out0 = math.sqrt(zt0[i, 0] * zt0[i, 0] + zt0[i, 1] * zt0[i, 1]) > rho0[i]
+        if out != out0:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def quadratic_roots(c0, c1, c2, out, n):
+    """The real roots of c0 + 2 c1 s + c2 s² appended to ``out`` from index n; returns the new
+    count (a root of a degenerate c2 = 0 equation, linear, counts once)."""
+    if c2 == 0.0:
+        if c1 != 0.0:
+            out[n] = -c0 / (2.0 * c1)
+            n += 1
+        return n
+    disc = c1 * c1 - c0 * c2
+    if disc < 0.0:
+        return n
+    # The root without cancellation first, the other from the product c0 / c2 (Vieta).
+    q = -(c1 + math.copysign(math.sqrt(disc), c1))
+    if q != 0.0:
+        out[n] = q / c2
+        out[n + 1] = c0 / q
+        return n + 2
+    out[n] = 0.0
+    return n + 1
+
+
+@njit(cache=True, error_model="numpy")
+def mode_events(a, mu, extra, zn, zt, rho, x, events):
+    """The lengths s at which a contact's mode changes along λ + s x (``newton.jump``): z_n
+    crossing 0 and |z_t| crossing ρ on either side of it. Returns their count."""
+    c = zn.shape[0]
+    size = x.shape[0]
+    n = 0
+    for i in range(c):
+        j = 3 * i
+        r = GAIN / a[j, j]
+        d = np.zeros(3)
+        for k in range(3):
+            ax = 0.0
+            for m in range(size):
+                ax += a[j + k, m] * x[m]
+            d[k] = x[j + k] - r * ax
+        if d[0] != 0.0:
+            events[n] = -zn[i] / d[0]
+            n += 1
+        t1, t2 = zt[i, 0], zt[i, 1]
+        tt = t1 * t1 + t2 * t2
+        td = t1 * d[1] + t2 * d[2]
+        dd = d[1] * d[1] + d[2] * d[2]
+        # ρ(s) = μ (z_n + s d_n + extra) where z_n(s) > 0, μ extra elsewhere.
+        p = mu[i] * (zn[i] + extra[i])
+        q = mu[i] * d[0]
+        first = n
+        n = quadratic_roots(tt - p * p, td - p * q, dd - q * q, events, n)
+        for e in range(first, n):  # keep the roots on the active side
+            if not zn[i] + events[e] * d[0] > 0:
+                events[e] = math.nan
+        p = mu[i] * extra[i]
+        first = n
+        n = quadratic_roots(tt - p * p, td, dd, events, n)
+        for e in range(first, n):
+            if zn[i] + events[e] * d[0] > 0:
+                events[e] = math.nan
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def jump(a, free, target, mu, extra, lam, factor, phi, zn, zt, rho, trial, f2, zn2, zt2, rho2):
+    """``newton.jump`` for one element: λ (updated in place when it jumps) along ± the null
+    direction of G, ``factor`` the Cholesky factor of the step's regularised GᵀG. Returns
+    whether it jumped."""
+    size = lam.shape[0]
+    x = np.ones(size)
+    for _ in range(2):
+        cholesky.solve(factor, x, size)
+        norm = 0.0
+        for i in range(size):
+            norm += x[i] * x[i]
+        norm = math.sqrt(norm)
+        for i in range(size):
+            x[i] /= norm
+    length = 0.0
+    for i in range(size):
+        length = max(length, abs(lam[i]))
+    floor = length * JUMP_FLOOR
+    events = np.empty(5 * zn.shape[0])
+    count = mode_events(a, mu, extra, zn, zt, rho, x, events)
+    ahead = math.inf  # the first event on each side beyond the floor
+    behind = -math.inf
+    for e in range(count):
+        s = events[e]
+        if s > floor and s < ahead:
+            ahead = s
+        elif s < -floor and s > behind:
+            behind = s
+    best_phi = math.inf
+    best_s = 0.0
+    for s in (ahead, behind):
+        if not math.isfinite(s):
+            continue
+        s *= 1.0 + JUMP_PAST  # just past the change
+        for i in range(size):
+            trial[i] = lam[i] + s * x[i]
+        phi_j = residual(a, free, target, mu, extra, trial, f2, zn2, zt2, rho2)
+        if phi_j < best_phi and mode_changed(zn2, zt2, rho2, zn, zt, rho):
+            best_phi = phi_j
+            best_s = s
+    if not best_phi <= JUMP_GROWTH * phi:
+        return False
+    for i in range(size):
+        lam[i] += best_s * x[i]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
 def newton(a, free, target, mu, lam, extra, budget, tolerance):
     """``newton.newton`` for one element: at most ``budget`` steps from ``lam`` (3C,),
     updated in place. Returns the steps taken."""
@@ -132,7 +267,9 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
     zt = buf[o + 4 * c : o + 6 * c].reshape((c, 2))
     zt2 = buf[o + 6 * c : o + 8 * c].reshape((c, 2))
     phi = residual(a, free, target, mu, extra, lam, f, zn, zt, rho)
+    scratch = (trial, f2, zn2, zt2, rho2)
     steps = 0
+    jumps = 0
     while steps < budget:
         worst = 0.0
         for i in range(c):
@@ -153,15 +290,29 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance):
                 accepted = True
                 break
             alpha *= 0.5
+        crawl = False
+        if accepted:
+            crawl = alpha < CRAWL_STEP and phi2 > CRAWL_DECREASE * phi
+            lam[:] = trial
+            f[:] = f2
+            zn[:] = zn2
+            zt[:, :] = zt2
+            rho[:] = rho2
+            phi = phi2
+            steps += 1
+        # A stall or a crawl: past a mode change along G's null direction (``newton``).
+        if (
+            (crawl or not accepted)
+            and steps < budget
+            and jumps < JUMPS
+            and jump(a, free, target, mu, extra, lam, normal, phi, zn, zt, rho, *scratch)
+        ):
+            phi = residual(a, free, target, mu, extra, lam, f, zn, zt, rho)
+            steps += 1
+            jumps += 1
+            continue
         if not accepted:
             break  # a stall: Gauss–Seidel goes on from λ
-        lam[:] = trial
-        f[:] = f2
-        zn[:] = zn2
-        zt[:, :] = zt2
-        rho[:] = rho2
-        phi = phi2
-        steps += 1
     return steps
 
 

@@ -17,8 +17,10 @@ per-contact blocks with the disk projection's derivative ρ/|z_t| (I − ẑ ẑ
 μ ẑ ∂z_n: Bertails-Descoteaux et al., "A nonsmooth Newton solver for capturing exact Coulomb
 friction in fiber assemblies", ACM TOG 2011, §4) by a least-squares solution (a face's four
 corners make A, hence G, singular: the regularised normal equations, ``RIDGE``), and a
-backtracking (Armijo) line search on |F|² picks the step length. The caller finishes with Gauss–Seidel, whose sweep test decides
-convergence: "converged" keeps the one meaning ``SolverSettings.tolerance`` states.
+backtracking (Armijo) line search on |F|² picks the step length. Where that stalls or crawls,
+``jump`` moves λ past a change of contact mode along G's null direction (note at
+``CRAWL_STEP``). The caller finishes with Gauss–Seidel, whose sweep test decides convergence:
+"converged" keeps the one meaning ``SolverSettings.tolerance`` states.
 """
 
 from __future__ import annotations
@@ -31,6 +33,25 @@ ARMIJO = 1e-4  # sufficient decrease of |F|² per unit step (Nocedal & Wright, 2
 # trained-policy states (150 × 512 × 8 cold single steps, 352,787 engaged) went from 1,660 to
 # 3,458.
 HALVINGS = 30
+# A Newton step that stalls (no step length decreases |F|²) or crawls (accepted shorter than
+# CRAWL_STEP, lowering |F|² by less than 1 − CRAWL_DECREASE) has met a direction G cannot
+# see: in a null direction of G, F is constant to first order, so no Newton step moves along
+# it, yet the root may lie along it past a change of contact mode. The case met in BoxLanding:
+# two sticking corners on a nearly level diagonal, where an internal tangential impulse between
+# them changes no velocity until one corner reaches its friction limit and slides. ``jump``
+# moves λ along ± that direction to just past (JUMP_PAST, relative) the first change of mode
+# on each side (z_n or |z_t| − ρ changing sign, both linear or quadratic in the length: roots
+# in closed form; changes closer than JUMP_FLOOR × max|λ| are the current kink, skipped) and
+# takes the side with the smaller |F|², if that is at most JUMP_GROWTH × |F|²; Newton goes on
+# from there in the new mode. A jump counts as a Newton step; at most JUMPS per polish. The
+# direction: two steps of inverse iteration on the step's regularised GᵀG (Golub & Van Loan,
+# "Matrix Computations", 2013, §7.6.1) from the ones vector.
+CRAWL_STEP = 1.0 / 16.0
+CRAWL_DECREASE = 0.9
+JUMP_FLOOR = 2.0**-40
+JUMP_PAST = 2.0**-30
+JUMP_GROWTH = 10.0
+JUMPS = 4
 # The least-squares step solves the regularised normal equations (GᵀG + δ I) Δ = −GᵀF (a
 # Levenberg–Marquardt step with a tiny δ: Nocedal & Wright, "Numerical Optimization", 2006,
 # §10.3) by Cholesky: 20× cheaper than an SVD pseudo-inverse for 3C ≤ 24 and the same step
@@ -95,6 +116,84 @@ def jacobian(delassus, mu, r, z_n, z_t, rho):
     return eye - dp
 
 
+def mode(z_n, z_t, rho):
+    """(N, 2C) bool: each contact's z_n > 0, then each contact's |z_t| > ρ."""
+    return np.concatenate((z_n > 0, np.sqrt(np.sum(z_t * z_t, axis=-1)) > rho), -1)
+
+
+def quadratic_roots(c0, c1, c2):
+    """(..., 2) real roots of c0 + 2 c1 s + c2 s², NaN where there are fewer (a degenerate
+    c2 = 0 equation, linear, has one): the root without cancellation, then the other by
+    Vieta's product c0 / c2."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = c1 * c1 - c0 * c2
+        q = -(c1 + np.copysign(np.sqrt(np.maximum(disc, 0.0)), c1))
+        first = np.where(q != 0.0, q / c2, 0.0)
+        second = np.where(q != 0.0, c0 / q, np.nan)
+        none = disc < 0.0
+        first = np.where(none, np.nan, first)
+        second = np.where(none, np.nan, second)
+        linear = np.where(c1 != 0.0, -c0 / (2.0 * c1), np.nan)
+        flat = c2 == 0.0
+        return np.stack((np.where(flat, linear, first), np.where(flat, np.nan, second)), -1)
+
+
+def mode_events(delassus, mu, extra, z_n, z_t, x):
+    """(N, 5C) lengths s at which a contact's mode changes along λ + s x (``jump``; NaN:
+    none): z_n crossing 0, and |z_t| crossing ρ where z_n(s) > 0 and where it is not."""
+    size, c = z_n.shape
+    a_nn = np.diagonal(delassus, axis1=-2, axis2=-1)[:, 0::3]
+    r = GAIN / a_nn
+    ax = np.einsum("nij,nj->ni", delassus, x).reshape(size, c, 3)
+    d = x.reshape(size, c, 3) - r[..., None] * ax
+    with np.errstate(divide="ignore", invalid="ignore"):
+        normal = np.where(d[..., 0] != 0.0, -z_n / d[..., 0], np.nan)
+    tt = np.sum(z_t * z_t, axis=-1)
+    td = np.sum(z_t * d[..., 1:], axis=-1)
+    dd = np.sum(d[..., 1:] * d[..., 1:], axis=-1)
+    p = mu * (z_n + extra)
+    q = mu * d[..., 0]
+    active = quadratic_roots(tt - p * p, td - p * q, dd - q * q)
+    active = np.where(z_n[..., None] + active * d[..., :1] > 0, active, np.nan)
+    p = mu * extra
+    inactive = quadratic_roots(tt - p * p, td, dd)
+    inactive = np.where(z_n[..., None] + inactive * d[..., :1] > 0, np.nan, inactive)
+    return np.concatenate((normal[..., None], active, inactive), -1).reshape(size, 5 * c)
+
+
+def jump(delassus, free, target, mu, extra, lam, normal, phi, z_n, z_t, rho):
+    """λ (N, C, 3) moved past the first change of contact mode along ± the null direction of G
+    (module note at ``CRAWL_STEP``), ``normal`` (N, 3C, 3C) the step's regularised GᵀG, ``phi``
+    (N,) |F|² at λ. Returns (moved λ, jumped (N,) bool); λ is unchanged where not jumped."""
+    size = len(lam)
+    x = np.ones(normal.shape[:-1])
+    for _ in range(2):  # inverse iteration
+        x = np.linalg.solve(normal, x[..., None])[..., 0]
+        x /= np.sqrt(np.sum(x * x, axis=-1, keepdims=True))
+    flat = lam.reshape(size, -1)
+    floor = np.max(np.abs(flat), axis=-1) * JUMP_FLOOR
+    events = mode_events(delassus, mu, extra, z_n, z_t, x)
+    with np.errstate(invalid="ignore"):
+        ahead = np.min(np.where(events > floor[:, None], events, np.inf), axis=-1)
+        behind = np.max(np.where(events < -floor[:, None], events, -np.inf), axis=-1)
+    base = mode(z_n, z_t, rho)
+    best_phi = np.full(size, np.inf)
+    best_s = np.zeros(size)
+    for s in (ahead, behind):
+        finite = np.isfinite(s)
+        s = np.where(finite, s, 0.0) * (1.0 + JUMP_PAST)
+        parts = residual(
+            delassus, free, target, mu, extra, lam + s[:, None, None] * x.reshape(lam.shape)
+        )
+        phi_j = np.sum(parts[0] * parts[0], axis=(-1, -2))
+        better = finite & (phi_j < best_phi) & np.any(mode(*parts[2:]) != base, axis=-1)
+        best_phi = np.where(better, phi_j, best_phi)
+        best_s = np.where(better, s, best_s)
+    jumped = best_phi <= JUMP_GROWTH * phi
+    moved = np.where(jumped[:, None], flat + best_s[:, None] * x, flat).reshape(lam.shape)
+    return moved, jumped
+
+
 def newton(delassus, free, target, mu, lam, extra, budget, tolerance):
     """Newton steps from ``lam`` (N, C, 3) on each element until its residual is below
     ``MARGIN`` × ``tolerance`` × its velocity scale, its line search stalls, or it has taken
@@ -103,6 +202,7 @@ def newton(delassus, free, target, mu, lam, extra, budget, tolerance):
     size, c, _ = free.shape
     lam = np.array(lam, dtype=float)
     steps = np.zeros(size, int)
+    jumps = np.zeros(size, int)
     budget = np.broadcast_to(budget, (size,))
     if size == 0 or np.max(budget) <= 0:
         return lam, steps
@@ -150,9 +250,38 @@ def newton(delassus, free, target, mu, lam, extra, budget, tolerance):
             alpha = np.where(accepted, alpha, 0.5 * alpha)
         lam[idx] = trial_lam
         steps[idx] += accepted
-        # A stalled line search ends that element's Newton; Gauss–Seidel goes on from λ.
-        idx = idx[accepted]
-        f, r, z_n, z_t, rho = (p[accepted] for p in best)
+        # A stall or a crawl: past a mode change along G's null direction (CRAWL_STEP's note).
+        phi_now = np.where(accepted, np.sum(best[0] * best[0], axis=(-1, -2)), phi)
+        crawl = accepted & (alpha < CRAWL_STEP) & (phi_now > CRAWL_DECREASE * phi)
+        want = (crawl | ~accepted) & (steps[idx] < budget[idx]) & (jumps[idx] < JUMPS)
+        jumped = np.zeros(len(idx), bool)
+        if want.any():
+            w = np.flatnonzero(want)
+            moved, ok = jump(
+                a[w],
+                b[w],
+                t[w],
+                mu,
+                x[w],
+                lam[idx[w]],
+                normal[w],
+                phi_now[w],
+                *(p[w] for p in best[2:]),
+            )
+            won = w[ok]
+            if len(won):
+                lam[idx[won]] = moved[ok]
+                parts = residual(a[won], b[won], t[won], mu, x[won], moved[ok])
+                best = tuple(np.array(p) for p in best)
+                for p, q in zip(best, parts, strict=True):
+                    p[won] = q
+                steps[idx[won]] += 1
+                jumps[idx[won]] += 1
+                jumped[won] = True
+        # A stall that did not jump ends that element's Newton; Gauss–Seidel goes on from λ.
+        go_on = accepted | jumped
+        idx = idx[go_on]
+        f, r, z_n, z_t, rho = (p[go_on] for p in best)
         if len(idx) == 0:
             break
     return lam, steps
@@ -162,4 +291,4 @@ def _expand(mask, array):
     return mask.reshape((-1,) + (1,) * (array.ndim - 1))
 
 
-__all__ = ["newton", "residual", "jacobian"]
+__all__ = ["newton", "residual", "jacobian", "jump", "mode", "mode_events", "quadratic_roots"]

@@ -74,7 +74,7 @@ class SolverSettings:
         is polished by semi-smooth Newton steps (``contacts.newton``) and the next round
         goes on from Newton's answer, up to ``max_iterations`` sweeps in all.
     newton_steps : Newton steps at most per solve, over all rounds (≥ 0; 0: Gauss–Seidel
-        alone).
+        alone); a jump past a change of contact mode (``contacts.newton``) counts as one.
     warm_start : False (default): every step's solve starts as above. True: in a
         ``Scene.step(..., steps=k)`` call, a step whose previous step (of the same call)
         converged with contacts engaged starts from that step's impulses instead (contact
