@@ -214,6 +214,8 @@ def rollout_boxlanding(
 def saved_policy(path: str, algo: str = "ppo") -> Callable[[np.ndarray], np.ndarray]:
     """observation → action of a saved stable-baselines3 model (``algo`` "ppo" or "sac"),
     deterministic, as an evaluation acts."""
+    if algo not in ("ppo", "sac"):
+        raise ValueError(f"algo must be 'ppo' or 'sac', got {algo!r}")
     try:
         from stable_baselines3 import PPO, SAC
     except ImportError:
@@ -222,7 +224,7 @@ def saved_policy(path: str, algo: str = "ppo") -> Callable[[np.ndarray], np.ndar
         ) from None
     if not Path(path).is_file():
         raise SystemExit(f"--policy: no such file: {path}")
-    model = {"ppo": PPO, "sac": SAC}[algo].load(path, device="cpu")
+    model = (PPO if algo == "ppo" else SAC).load(path, device="cpu")
     return lambda obs: model.predict(obs, deterministic=True)[0]
 
 

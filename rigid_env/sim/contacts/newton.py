@@ -233,7 +233,7 @@ def newton(delassus, free, target, mu, lam, extra, budget, tolerance):
         phi = np.sum(f * f, axis=(-1, -2))
         alpha = np.ones(len(idx))
         accepted = np.zeros(len(idx), bool)
-        best = (f, r, z_n, z_t, rho)
+        best: tuple[np.ndarray, ...] = (f, r, z_n, z_t, rho)
         trial_lam = lam[idx]
         for _ in range(HALVINGS):
             trial = lam[idx] + alpha[:, None, None] * step
