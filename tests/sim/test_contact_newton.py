@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from rigid_env import sim
+from rigid_env.sim.compiled import contact_newton as compiled_newton
 from rigid_env.sim.compiled.contact_gauss_seidel import WORK_PER_CONTACT
 from rigid_env.sim.compiled.contact_newton import converge as compiled_converge
 from rigid_env.sim.contacts import newton as newton_module
@@ -274,12 +275,32 @@ def test_without_jumps_those_steps_are_capped(sim_backend, name, monkeypatch):
     assert stalled_step(landing_scene(backend="numpy"), name).capped == 1
 
 
+def quadratic_roots(backend, c0, c1, c2):
+    """That backend's roots of c0 + 2 c1 s + c2 s², (N, 2) with NaN where there are fewer."""
+    if backend == "numpy":
+        return newton_module.quadratic_roots(c0, c1, c2)
+    out = np.full((len(c0), 2), np.nan)
+    for k in range(len(c0)):
+        compiled_newton.quadratic_roots(c0[k], c1[k], c2[k], out[k], 0)
+    return out
+
+
+def mode_events(backend, a, mu, extra, z_n, z_t, rho, x):
+    """That backend's mode events of one element, NaN-padded to 5C."""
+    if backend == "numpy":
+        return newton_module.mode_events(a, mu, extra, z_n, z_t, x)[0]
+    events = np.full(5 * z_n.shape[1], np.nan)
+    count = compiled_newton.mode_events(a[0], mu, extra[0], z_n[0], z_t[0], rho[0], x[0], events)
+    events[count:] = np.nan
+    return events
+
+
 def test_quadratic_roots_are_the_real_roots(sim_backend):
     rng = np.random.default_rng(0)
     c0, c1, c2 = rng.normal(size=(3, 200))
     c2[:20] = 0.0  # linear
     c1[:5] = 0.0  # and constant: no root
-    roots = newton_module.quadratic_roots(c0, c1, c2)
+    roots = quadratic_roots(sim_backend, c0, c1, c2)
     for k in range(200):
         expected = np.roots([c2[k], 2 * c1[k], c0[k]])
         expected = np.sort(expected[np.abs(expected.imag) == 0].real)
@@ -306,7 +327,7 @@ def test_mode_events_are_where_a_contact_changes_mode(sim_backend, monkeypatch):
         return newton_module.mode(*parts[2:])[0]
 
     _, _, z_n, z_t, rho = newton_module.residual(a, free, target, mu, extra, lam)
-    events = newton_module.mode_events(a, mu, extra, z_n, z_t, x)[0]
+    events = mode_events(sim_backend, a, mu, extra, z_n, z_t, rho, x)
     events = np.sort(events[np.isfinite(events)])
     assert len(events) > 0
     # Across each event some contact's mode flips (1e-7 relative: far above the roots'

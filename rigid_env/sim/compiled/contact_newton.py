@@ -165,32 +165,37 @@ def mode_events(a, mu, extra, zn, zt, rho, x, events):
     for i in range(c):
         j = 3 * i
         r = GAIN / a[j, j]
-        d = np.zeros(3)
-        for k in range(3):
-            ax = 0.0
-            for m in range(size):
-                ax += a[j + k, m] * x[m]
-            d[k] = x[j + k] - r * ax
-        if d[0] != 0.0:
-            events[n] = -zn[i] / d[0]
+        # dz/ds = x − r A x on the contact's three rows.
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for m in range(size):
+            a0 += a[j, m] * x[m]
+            a1 += a[j + 1, m] * x[m]
+            a2 += a[j + 2, m] * x[m]
+        d0 = x[j] - r * a0
+        d1 = x[j + 1] - r * a1
+        d2 = x[j + 2] - r * a2
+        if d0 != 0.0:
+            events[n] = -zn[i] / d0
             n += 1
         t1, t2 = zt[i, 0], zt[i, 1]
         tt = t1 * t1 + t2 * t2
-        td = t1 * d[1] + t2 * d[2]
-        dd = d[1] * d[1] + d[2] * d[2]
+        td = t1 * d1 + t2 * d2
+        dd = d1 * d1 + d2 * d2
         # ρ(s) = μ (z_n + s d_n + extra) where z_n(s) > 0, μ extra elsewhere.
         p = mu[i] * (zn[i] + extra[i])
-        q = mu[i] * d[0]
+        q = mu[i] * d0
         first = n
         n = quadratic_roots(tt - p * p, td - p * q, dd - q * q, events, n)
         for e in range(first, n):  # keep the roots on the active side
-            if not zn[i] + events[e] * d[0] > 0:
+            if not zn[i] + events[e] * d0 > 0:
                 events[e] = math.nan
         p = mu[i] * extra[i]
         first = n
         n = quadratic_roots(tt - p * p, td, dd, events, n)
         for e in range(first, n):
-            if zn[i] + events[e] * d[0] > 0:
+            if zn[i] + events[e] * d0 > 0:
                 events[e] = math.nan
     return n
 
