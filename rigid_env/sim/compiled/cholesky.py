@@ -10,7 +10,7 @@ import math
 from .cache import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def gram(a, rows, cols, out):
     """The lower triangle of AᵀA (cols, cols) into ``out``, A the leading (rows, cols) block of
     ``a``."""
@@ -42,7 +42,7 @@ def gram(a, rows, cols, out):
             j += 1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def factor(m, n):
     """M = L Lᵀ for the leading (n, n) block of ``m``, L written over its lower triangle. A
     pivot that is not positive (rounding of a matrix that is only semidefinite) becomes 1e-300,
@@ -71,7 +71,7 @@ def factor(m, n):
             m[i, j] = acc / d
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def solve(m, y, n):
     """y ← (L Lᵀ)⁻¹ y in place, L from :func:`factor` (n entries)."""
     for i in range(n):  # L z = y

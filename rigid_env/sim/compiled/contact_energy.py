@@ -149,7 +149,8 @@ def base_position(st, e, b, elapsed):
     )
 
 
-@njit(cache=True, error_model="numpy")
+# Inlined into the driver: it runs for every element (see ``driver``).
+@njit(cache=True, error_model="numpy", inline="always")
 def limit_energy(e, st, d):
     """``LimitEnergy`` for one engaged element: scale its velocities so the step ends with no
     more energy than max(E_start, E_free); the impacts' path becomes the displacement."""
@@ -246,7 +247,8 @@ def limit_energy(e, st, d):
             disp[e, b, j] = disp[e, b, j] - elapsed * v[e, b, j] if elapsed > 0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+# Inlined into the driver: it runs for every element (see ``driver``).
+@njit(cache=True, error_model="numpy", inline="always")
 def separate_contacts(e, st, d):
     """``SeparateContacts`` for one engaged element: remove the overlap the step left and pay
     the lift's potential energy out of the kinetic energy (what cannot be paid: UNPAID).

@@ -29,7 +29,7 @@ from .cache import njit
 from .contact_gauss_seidel import gauss_seidel, velocity_scale
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def residual(a, free, target, mu, extra, lam, f, zn, zt, rho):
     """F (3C,) at ``lam`` (3C,) into ``f``; z_n (C,), z_t (C, 2), ρ (C,) into their arrays.
     Returns |F|²."""
@@ -66,7 +66,7 @@ def residual(a, free, target, mu, extra, lam, f, zn, zt, rho):
     return phi
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def jacobian(a, mu, zn, zt, rho, g):
     """G = I − ∂P (I − R A) into ``g`` (3C, 3C), as ``newton.jacobian``."""
     c = zn.shape[0]
@@ -100,7 +100,7 @@ def jacobian(a, mu, zn, zt, rho, g):
             g[j + 2, k] = (1.0 if k == j + 2 else 0.0) - d2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def least_squares_step(g, f, normal, step):
     """Δ = −(GᵀG + δ I)⁻¹ GᵀF into ``step`` (``newton.RIDGE``), by Cholesky (Golub & Van Loan,
     "Matrix Computations", 4th ed. 2013, Algorithm 4.2.1); ``normal`` (n, n) scratch."""

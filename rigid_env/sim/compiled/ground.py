@@ -32,7 +32,8 @@ def ground_data(bodies) -> tuple | None:
     )
 
 
-@njit(cache=True, error_model="numpy")
+# Inlined into the driver: it runs for every element (see ``driver``).
+@njit(cache=True, error_model="numpy", inline="always")
 def detect(e, st, d):
     points, foot, bodies, keep = d
     k = keep[0]

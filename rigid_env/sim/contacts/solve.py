@@ -219,17 +219,18 @@ def _disk_step(att, eig, q, lt, vt, cap):
     radial = cap <= 1e-12 * norm
     gamma = np.zeros(len(p))
     p2 = p * p
-    safe_cap = np.where(cap > 0, cap, 1.0)
+    inv_cap = 1.0 / np.where(cap > 0, cap, 1.0)
     p2 = np.where(radial[:, None], 0.0, p2)
     done = np.zeros(len(p), bool)
     for _ in range(DISK_NEWTON_STEPS):
-        d = eig + gamma[:, None]
-        q2 = p2 / (d * d)
+        # Newton on 1/|λ(γ)| − 1/cap: the step ψ/ψ' = f (1 − √f/cap) / f' with f = |λ(γ)|²,
+        # f' = Σ pᵢ²/dᵢ³ (the derivative up to −2), in reciprocals: 3 divisions, not 6.
+        r = 1.0 / (eig + gamma[:, None])
+        q2 = p2 * (r * r)
         f = q2[:, 0] + q2[:, 1]
-        fp = (q2[:, 0] / d[:, 0]) + (q2[:, 1] / d[:, 1])
+        fp = q2[:, 0] * r[:, 0] + q2[:, 1] * r[:, 1]
         root = np.sqrt(f)
-        psi = 1.0 / np.where(root > 0, root, 1.0) - 1.0 / safe_cap
-        step = np.where(done, 0.0, psi * f * root / np.where(fp > 0, fp, 1.0))
+        step = np.where(done, 0.0, f * (1.0 - root * inv_cap) / np.where(fp > 0, fp, 1.0))
         gamma = np.maximum(gamma - step, 0.0)
         # Converged entries stay put: an element's result does not depend on its batch.
         done |= np.abs(step) <= 1e-15 * gamma
