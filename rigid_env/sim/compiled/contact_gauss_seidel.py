@@ -101,17 +101,18 @@ def gauss_seidel(
     c = target.shape[0]
     size = r * c
     scale = velocity_scale(free, target)
-    eig = work[: 6 * c].reshape((c, 6))  # e₀, e₁, Q of each A_tt
+    # work[6i : 6i + 6]: e₀, e₁, Q of contact i's A_tt; then λ before the sweep (indexed in
+    # place: a view per call costs a reference count)
     if r == 3 and not decomposed:
         for i in range(c):
             j = 3 * i
             e0, e1, q00, q01, q10, q11 = eig2(a[j + 1, j + 1], a[j + 2, j + 1], a[j + 2, j + 2])
-            eig[i, 0], eig[i, 1], eig[i, 2] = e0, e1, q00
-            eig[i, 3], eig[i, 4], eig[i, 5] = q01, q10, q11
-    before = work[6 * c : 6 * c + size]
+            work[6 * i], work[6 * i + 1], work[6 * i + 2] = e0, e1, q00
+            work[6 * i + 3], work[6 * i + 4], work[6 * i + 5] = q01, q10, q11
+    b0 = 6 * c
     for sweep in range(1, max_iterations + 1):
         for k in range(size):
-            before[k] = lam[k]
+            work[b0 + k] = lam[k]
         for i in range(c):
             j = r * i
             # The contact's velocities before its update (all its rows), as numpy's einsum.
@@ -139,12 +140,12 @@ def gauss_seidel(
                     a[j + 1, j + 1],
                     a[j + 2, j + 1],
                     a[j + 2, j + 2],
-                    eig[i, 0],
-                    eig[i, 1],
-                    eig[i, 2],
-                    eig[i, 3],
-                    eig[i, 4],
-                    eig[i, 5],
+                    work[6 * i + 0],
+                    work[6 * i + 1],
+                    work[6 * i + 2],
+                    work[6 * i + 3],
+                    work[6 * i + 4],
+                    work[6 * i + 5],
                     lam[j + 1],
                     lam[j + 2],
                     vt1,
@@ -154,7 +155,7 @@ def gauss_seidel(
         # The sweep's effect on the contact velocities, A Δλ, rows in pairs (two independent
         # sums, each in order), stopping at the first row over the tolerance.
         for k in range(size):
-            before[k] = lam[k] - before[k]  # now Δλ
+            work[b0 + k] = lam[k] - work[b0 + k]  # now Δλ
         limit = tolerance * scale
         converged = True
         i = 0
@@ -163,14 +164,14 @@ def gauss_seidel(
                 acc = 0.0
                 acc1 = 0.0
                 for k in range(size):
-                    acc += a[i, k] * before[k]
-                    acc1 += a[i + 1, k] * before[k]
+                    acc += a[i, k] * work[b0 + k]
+                    acc1 += a[i + 1, k] * work[b0 + k]
                 converged = abs(acc) <= limit and abs(acc1) <= limit
                 i += 2
             else:
                 acc = 0.0
                 for k in range(size):
-                    acc += a[i, k] * before[k]
+                    acc += a[i, k] * work[b0 + k]
                 converged = abs(acc) <= limit
                 i += 1
         if converged:

@@ -19,20 +19,31 @@ from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
+    I_C,
+    I_GROUND,
     I_K,
     I_MAX_ITERATIONS,
+    I_N,
     I_NEWTON_AFTER,
     I_NEWTON_STEPS,
     I_PARTICLE,
     I_WARM,
+    O_L,
+    O_LINV,
+    O_MASS,
+    O_MU,
+    O_OWNER,
+    O_RIM,
+    O_SHAPED,
     add_impulses,
+    block,
     contact_data,
     contact_velocity,
     delassus,
     load_velocities,
+    offsets,
     scaled_velocity,
     store_velocities,
-    unpack,
 )
 from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
 from .contact_newton import converge
@@ -91,7 +102,17 @@ def solve(e, st, d):
     if report[e, ENGAGED] == 0.0:
         st[CONTACT][e, 0, WARM_OK] = 0.0  # the next step starts cold
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
+    # The views the solve uses, not ``unpack``'s fifteen: each costs a reference count.
+    ints, floats = d
+    g_count, c, n_bodies = ints[I_GROUND], ints[I_C], ints[I_N]
+    o_ = offsets(ints)
+    mu = floats[o_[O_MU] : o_[O_MU] + c]
+    owner = ints[o_[O_OWNER] : o_[O_OWNER] + c]
+    shaped = ints[o_[O_SHAPED] : o_[O_SHAPED] + g_count]
+    mass = floats[o_[O_MASS] : o_[O_MASS] + n_bodies]
+    rim = floats[o_[O_RIM] : o_[O_RIM] + n_bodies]
+    lflat = block(floats, o_[O_L], n_bodies, 9)
+    linv = block(floats, o_[O_LINV], n_bodies, 9)
     dt = floats[F_DT]
     tolerance = floats[F_TOLERANCE]
     k = ints[I_K]
@@ -101,10 +122,10 @@ def solve(e, st, d):
     n = st[0].shape[1]
     # One scratch allocation for the whole solve, carved into views.
     buf = np.empty(12 * n + size * size + 2 * size + 3 * c + WORK_PER_CONTACT * c)
-    u = buf[: 6 * n].reshape((n, 6))
-    u_in = buf[6 * n : 12 * n].reshape((n, 6))
+    u = block(buf, 0, n, 6)
+    u_in = block(buf, 6 * n, n, 6)
     o = 12 * n
-    a = buf[o : o + size * size].reshape((size, size))
+    a = block(buf, o, size, size)
     o += size * size
     free = buf[o : o + size]
     lam = buf[o + size : o + 2 * size]
