@@ -23,7 +23,7 @@ import pytest
 from rigid_env import sim
 from rigid_env.bench.contact_solve import l_prism, tetrahedron
 from rigid_env.sim.compiled import backend as compiled_backend
-from rigid_env.sim.rotation import quat_exp
+from rigid_env.sim.rotation import quat_exp, quat_multiply
 from rigid_env.sim.scenes import landing_scene
 
 pytestmark = pytest.mark.skipif(
@@ -290,3 +290,44 @@ def test_compiled_warm_start_matches_numpy_call_by_call(name):
         engaged += a.engaged > 0
         state = ref
     assert engaged > 0
+
+
+def test_compiled_detection_keeps_numpy_contacts():
+    """The compiled detection orders a box's corners by R's third row (no per-element scratch)
+    where numpy orders its rotated corners' heights: the same K lowest, in vertex order, with
+    numpy's arms and gaps to rounding (4 ε of the box's size), for generic orientations and for
+    those where corners tie (faces and edges level: every multiple of 45° about x, then y)."""
+    from numba import njit
+
+    from rigid_env.sim.compiled import layout
+    from rigid_env.sim.compiled.ground import detect, ground_data
+    from rigid_env.sim.contacts.ground import GroundContacts
+
+    @njit
+    def run(st, data):
+        for e in range(st[0].shape[0]):
+            detect(e, st, data)
+
+    body = sim.Body.box((0.1, 0.15, 0.2), 1.0)
+    rng = np.random.default_rng(0)
+    generic = quat_exp(rng.normal(size=(500, 3)))
+    angles = np.arange(8) * np.pi / 4
+    ax, ay = np.meshgrid(angles, angles)
+    about_x = quat_exp(np.stack([ax.ravel(), 0 * ax.ravel(), 0 * ax.ravel()], -1))
+    about_y = quat_exp(np.stack([0 * ay.ravel(), ay.ravel(), 0 * ay.ravel()], -1))
+    level = quat_multiply(about_y, about_x)
+    q0 = np.concatenate([generic, level])[:, None, :]
+    n = len(q0)
+    x0 = np.zeros((n, 1, 3))
+    x0[:, 0, 2] = rng.uniform(-0.1, 0.5, n)
+    data = ground_data([body])
+    slots = len(data[2]) * int(data[3][0])
+    contact = np.zeros((n, slots, layout.CONTACT_WIDTH))
+    zero = np.zeros((n, 1, 3))
+    st = (x0, q0, zero, zero, zero, q0, zero, zero, zero, zero, zero, contact)
+    st = st + (np.zeros((n, layout.REPORT_WIDTH)), zero)
+    run(st, data)
+    arm, gap = GroundContacts([body]).detect(x0, q0)
+    size = 4 * np.finfo(float).eps * 0.5
+    np.testing.assert_allclose(contact[:, :, layout.ARM : layout.ARM + 3], arm[:, 0], atol=size)
+    np.testing.assert_allclose(contact[:, :, layout.GAP], gap[:, 0], atol=size)

@@ -74,11 +74,16 @@ def vec4(bd, b, col):
 @njit(cache=True, error_model="numpy", inline="always")
 def apply_inertia(bd, b, rot, vec):
     """``R M0 Rᵀ vec`` (``Model.apply_inertia``)."""
+    return inertia_times(bd[b, DIAGONAL] != 0.0, _mat9(bd, b, INERTIA), rot, vec)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def inertia_times(diagonal, m, rot, vec):
+    """``R M0 Rᵀ vec`` for M0 the 9-tuple ``m`` (row-major), elementwise when ``diagonal``."""
     local = rotate_inverse(rot, vec)
-    if bd[b, DIAGONAL] != 0.0:
-        d = (bd[b, INERTIA], bd[b, INERTIA + 4], bd[b, INERTIA + 8])
-        return rotate(rot, (local[0] * d[0], local[1] * d[1], local[2] * d[2]))
-    return rotate(rot, rotate(_mat9(bd, b, INERTIA), local))
+    if diagonal:
+        return rotate(rot, (local[0] * m[0], local[1] * m[4], local[2] * m[8]))
+    return rotate(rot, rotate(m, local))
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -329,36 +329,35 @@ def assemble(e, st, d):
         vz = v[e, b, 2] + spin[2]
         if contact[e, i, GAP] + dt * min(vz, 0.0) < 0:
             engaged = True
-    if not engaged:
-        return
-    st[REPORT][e, ENGAGED] = 1.0
-    k = ints[I_K]
-    for g in range(ints[I_GROUND]):
-        b = ints[o[O_SHAPED] + g]
-        for i in range(3):
-            contact[e, g * k, U1 + i] = v[e, b, i]
-            contact[e, g * k, U1 + 3 + i] = w[e, b, i]
-    for i in range(c):
-        b = ints[o[O_OWNER] + i]
-        arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
-        spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)
-        vx = v[e, b, 0] + spin[0]
-        vy = v[e, b, 1] + spin[1]
-        # tangents(): the sliding direction, else the perpendicular (1, 0, 0) of n = +z.
-        speed = np.sqrt(vx * vx + vy * vy + 0.0)
-        t1 = (vx / speed, vy / speed, 0.0) if speed > 1e-9 else (1.0, 0.0, 0.0)
-        q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
-        scale = matmul(quat_to_matrix(q), tuple9(floats, o[O_L] + 9 * b))  # scale_matrix
-        rim = floats[o[O_RIM] + b]
-        for r in range(3):
-            basis = basis_row(t1, r)
-            ang = rotate_inverse(scale, cross(arm, basis))  # (r × b)ᵀ R L
+    if engaged:  # (no early return: see ``ground.detect``'s note)
+        st[REPORT][e, ENGAGED] = 1.0
+        k = ints[I_K]
+        for g in range(ints[I_GROUND]):
+            b = ints[o[O_SHAPED] + g]
+            for i in range(3):
+                contact[e, g * k, U1 + i] = v[e, b, i]
+                contact[e, g * k, U1 + 3 + i] = w[e, b, i]
+        for i in range(c):
+            b = ints[o[O_OWNER] + i]
+            arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
+            spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)
+            vx = v[e, b, 0] + spin[0]
+            vy = v[e, b, 1] + spin[1]
+            # tangents(): the sliding direction, else the perpendicular (1, 0, 0) of n = +z.
+            speed = np.sqrt(vx * vx + vy * vy + 0.0)
+            t1 = (vx / speed, vy / speed, 0.0) if speed > 1e-9 else (1.0, 0.0, 0.0)
+            q = (st[Q][e, b, 0], st[Q][e, b, 1], st[Q][e, b, 2], st[Q][e, b, 3])
+            scale = matmul(quat_to_matrix(q), tuple9(floats, o[O_L] + 9 * b))  # scale_matrix
+            rim = floats[o[O_RIM] + b]
+            for r in range(3):
+                basis = basis_row(t1, r)
+                ang = rotate_inverse(scale, cross(arm, basis))  # (r × b)ᵀ R L
+                for j in range(3):
+                    contact[e, i, JT + 6 * r + j] = basis[j] * rim
+                    contact[e, i, JT + 6 * r + 3 + j] = ang[j]
             for j in range(3):
-                contact[e, i, JT + 6 * r + j] = basis[j] * rim
-                contact[e, i, JT + 6 * r + 3 + j] = ang[j]
-        for j in range(3):
-            contact[e, i, T1 + j] = t1[j]
-        contact[e, i, PATH_GAP] = contact[e, i, GAP]
+                contact[e, i, T1 + j] = t1[j]
+            contact[e, i, PATH_GAP] = contact[e, i, GAP]
 
 
 @register("assemble_contacts")

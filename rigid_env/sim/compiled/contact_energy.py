@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from ..contacts.stages import MAX_HALVINGS
-from .bodies import BODY_WIDTH, apply_inertia
+from .bodies import BODY_WIDTH, DIAGONAL, INERTIA, inertia_times
 from .cache import njit
 from .contact_assembly import (
     F_DT,
@@ -27,9 +27,9 @@ from .contact_assembly import (
     O_MASS,
     O_POINTS,
     O_SHAPED,
-    block,
     contact_data,
     offsets,
+    tuple9,
 )
 from .layout import (
     CONTACT,
@@ -54,11 +54,13 @@ from .rotation import quat_exp, quat_multiply, quat_normalize, quat_rotate, quat
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kinetic_term(bd, b, q, v, w):
-    """Body b's term of ``energy.kinetic`` at orientation q of velocities v, ω (tuples)."""
+def kinetic_term(floats, at, q, v, w):
+    """A body's term of ``energy.kinetic`` at orientation q of velocities v, ω (tuples), its
+    ``bodies`` row starting at ``floats[at]`` (indexed in place: no view)."""
     rot = quat_to_matrix(q)
-    spin = apply_inertia(bd, b, rot, w)
-    lin = 0.5 * bd[b, 0] * (v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+    m0 = tuple9(floats, at + INERTIA)
+    spin = inertia_times(floats[at + DIAGONAL] != 0.0, m0, rot, w)
+    lin = 0.5 * floats[at] * (v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
     return lin + 0.5 * (w[0] * spin[0] + w[1] * spin[1] + w[2] * spin[2])
 
 
@@ -161,7 +163,6 @@ def limit_energy(e, st, d):
     o = offsets(ints)
     n, k = ints[I_N], ints[I_K]
     has_gravity = ints[I_GRAVITY] != 0
-    bd = block(floats, o[O_BODY], n, BODY_WIDTH)
     dt = floats[F_DT]
     contact = st[CONTACT]
     x0, q0, v0, w0, v, w = st[X0], st[Q0], st[V0], st[W0], st[V], st[W]
@@ -175,14 +176,17 @@ def limit_energy(e, st, d):
     for b in range(n):
         g = slot_of(ints, o, b)
         qb0, xb0 = vec4(q0, e, b), vec3(x0, e, b)
-        ke_start += kinetic_term(bd, b, qb0, vec3(v0, e, b), vec3(w0, e, b))
+        ke_start += kinetic_term(
+            floats, o[O_BODY] + BODY_WIDTH * b, qb0, vec3(v0, e, b), vec3(w0, e, b)
+        )
         p_start += potential_term(floats, o, b, xb0)
         v1, w1 = velocity_after_update(contact, v, w, e, b, g, k)
-        ke_free += kinetic_term(bd, b, qb0, v1, w1)
+        ke_free += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, qb0, v1, w1)
         x_free = (xb0[0] + dt * v1[0], xb0[1] + dt * v1[1], xb0[2] + dt * v1[2])
         p_free += potential_term(floats, o, b, x_free)
         vb = vec3(v, e, b)
-        ke += kinetic_term(bd, b, path_orientation(st, e, b, g, k, elapsed), vb, vec3(w, e, b))
+        q_path = path_orientation(st, e, b, g, k, elapsed)
+        ke += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, q_path, vb, vec3(w, e, b))
         base = base_position(st, e, b, elapsed)
         p_base += potential_term(floats, o, b, base)
         x_tail = (base[0] + tail * vb[0], base[1] + tail * vb[1], base[2] + tail * vb[2])
@@ -279,13 +283,13 @@ def separate_contacts(e, st, d):
         after += potential_term(floats, o, b, vec3(x, e, b))
     lift = potential_end(has_gravity, after) - potential_end(has_gravity, before)
     if lift > 0:
-        bd = block(floats, o[O_BODY], n, BODY_WIDTH)
         v, w = st[V], st[W]
         # KE at the end orientation: that of q₀ or of the path (``LimitEnergy``'s ``rot0``).
         q_end = q if report[e, ELAPSED] > 0 else st[Q0]
         ke = 0.0
         for b in range(n):
-            ke += kinetic_term(bd, b, vec4(q_end, e, b), vec3(v, e, b), vec3(w, e, b))
+            at = o[O_BODY] + BODY_WIDTH * b
+            ke += kinetic_term(floats, at, vec4(q_end, e, b), vec3(v, e, b), vec3(w, e, b))
         # energy.pay
         keep = max(ke - lift, 0.0)
         factor = math.sqrt(keep / (ke if ke > 0 else 1.0))
