@@ -135,24 +135,42 @@ def offsets(ints):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unpack(d):
-    """The views of ``contact_data``'s two arrays: (ints, floats, mu, eps, threshold, owner,
-    shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity)."""
-    ints, floats = d
-    g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
-    o = offsets(ints)
+def solver_views(ints, floats, o):
+    """The views of ``contact_data``'s arrays that the solve takes (``o``: ``offsets``):
+    (μ, owner, shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9)). ``solve`` builds only these (each
+    view costs a reference count); ``unpack`` adds the rest."""
+    g, c, n = ints[I_GROUND], ints[I_C], ints[I_N]
     return (
-        ints,
-        floats,
         floats[o[O_MU] : o[O_MU] + c],
-        floats[o[O_EPS] : o[O_EPS] + c],
-        floats[o[O_THRESHOLD] : o[O_THRESHOLD] + c],
         ints[o[O_OWNER] : o[O_OWNER] + c],
         ints[o[O_SHAPED] : o[O_SHAPED] + g],
         floats[o[O_MASS] : o[O_MASS] + n],
         floats[o[O_RIM] : o[O_RIM] + n],
         block(floats, o[O_L], n, 9),
         block(floats, o[O_LINV], n, 9),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unpack(d):
+    """The views of ``contact_data``'s two arrays: (ints, floats, mu, eps, threshold, owner,
+    shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity)."""
+    ints, floats = d
+    g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
+    o = offsets(ints)
+    mu, owner, shaped, mass, rim, lflat, linv = solver_views(ints, floats, o)
+    return (
+        ints,
+        floats,
+        mu,
+        floats[o[O_EPS] : o[O_EPS] + c],
+        floats[o[O_THRESHOLD] : o[O_THRESHOLD] + c],
+        owner,
+        shaped,
+        mass,
+        rim,
+        lflat,
+        linv,
         block(floats, o[O_BODY], n, bodies.BODY_WIDTH),
         block3(floats, o[O_POINTS], g, v, 3),
         floats[o[O_FOOT] : o[O_FOOT] + g],

@@ -19,22 +19,12 @@ from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
-    I_C,
-    I_GROUND,
     I_K,
     I_MAX_ITERATIONS,
-    I_N,
     I_NEWTON_AFTER,
     I_NEWTON_STEPS,
     I_PARTICLE,
     I_WARM,
-    O_L,
-    O_LINV,
-    O_MASS,
-    O_MU,
-    O_OWNER,
-    O_RIM,
-    O_SHAPED,
     add_impulses,
     block,
     contact_data,
@@ -43,6 +33,7 @@ from .contact_assembly import (
     load_velocities,
     offsets,
     scaled_velocity,
+    solver_views,
     store_velocities,
 )
 from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
@@ -102,17 +93,8 @@ def solve(e, st, d):
     if report[e, ENGAGED] == 0.0:
         st[CONTACT][e, 0, WARM_OK] = 0.0  # the next step starts cold
         return
-    # The views the solve uses, not ``unpack``'s fifteen: each costs a reference count.
     ints, floats = d
-    g_count, c, n_bodies = ints[I_GROUND], ints[I_C], ints[I_N]
-    o_ = offsets(ints)
-    mu = floats[o_[O_MU] : o_[O_MU] + c]
-    owner = ints[o_[O_OWNER] : o_[O_OWNER] + c]
-    shaped = ints[o_[O_SHAPED] : o_[O_SHAPED] + g_count]
-    mass = floats[o_[O_MASS] : o_[O_MASS] + n_bodies]
-    rim = floats[o_[O_RIM] : o_[O_RIM] + n_bodies]
-    lflat = block(floats, o_[O_L], n_bodies, 9)
-    linv = block(floats, o_[O_LINV], n_bodies, 9)
+    mu, owner, shaped, mass, rim, lflat, linv = solver_views(ints, floats, offsets(ints))
     dt = floats[F_DT]
     tolerance = floats[F_TOLERANCE]
     k = ints[I_K]
