@@ -233,8 +233,9 @@ def test_newton_settings_are_validated(sim_backend, name, value):
 
 # Two steps of a BoxLanding-v0 rollout under a trained PPO policy where the Newton polish stalls
 # on a change of contact mode it cannot see (``newton.CRAWL_STEP``'s note): without jumps along
-# G's null direction both stop at the cap. (position, orientation, velocity, angular velocity,
-# body torque) before the step.
+# G's null direction the first stops at the cap; the second's polish then leaves λ worse and is
+# undone, and Gauss–Seidel alone converges (``solve.converge``). (position, orientation,
+# velocity, angular velocity, body torque) before the step.
 STALLS = {
     "after an impact": (
         [-0.18883042278527906, 0.159609038913498, 0.2002247011516451],
@@ -267,12 +268,51 @@ def test_newton_jumps_past_the_mode_change_that_stalls_it(sim_backend, name):
     assert report.capped == 0
 
 
-@pytest.mark.parametrize("name", STALLS)
+@pytest.mark.parametrize("name, capped", [("after an impact", 1), ("settling on a face", 0)])
 @pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
-def test_without_jumps_those_steps_are_capped(sim_backend, name, monkeypatch):
+def test_without_jumps_the_first_step_is_capped(sim_backend, name, capped, monkeypatch):
     # The kernels read JUMPS when they compile, so this runs the numpy path on either backend.
     monkeypatch.setattr(newton_module, "JUMPS", 0)
-    assert stalled_step(landing_scene(backend="numpy"), name).capped == 1
+    assert stalled_step(landing_scene(backend="numpy"), name).capped == capped
+
+
+# A box of the speed bench's landing scene (Δt = 0.01 s, 1 s after the drop) resting on two
+# corners with speculative targets on the other two. Gauss–Seidel alone converges in tens of
+# sweeps; the Newton polish after the first round carries λ ~1e-2 N s along the null space of
+# the face's corners (the next sweep changes a velocity 3e4× more than the last sweep before
+# it), from where Gauss–Seidel crawls: before the polish was judged, the step stopped at the
+# cap (500 sweeps, 50 Newton steps) on both backends.
+WORSE_POLISH = (
+    [0.035706976254310865, -0.06317129199706589, 0.20006819375589388],
+    [9.872175936495912e-05, 2.3558847364784406e-05, 0.2321208947239867, 0.9726869382959404],
+    [0.0038415718562678112, -0.007590549605262682, 0.014241802025152232],
+    [0.0380039132207675, 0.019233753950533873, -5.949549034796867e-18],
+)
+
+
+def test_a_polish_that_leaves_the_sweeps_worse_is_undone(sim_backend):
+    x, q, v, w = WORSE_POLISH
+    results = []
+    for settings in (None, sim.SolverSettings(newton_steps=0)):
+        scene = sim.Scene(
+            sim.Body.box((0.1, 0.15, 0.2), 1.0),
+            0.01,
+            integrator="implicit_gyro",
+            gravity=(0.0, 0.0, -9.81),
+            ground=sim.Ground(restitution=0.3, friction=0.5),
+            contact_solver=settings,
+        )
+        state = scene.initial_state(
+            position=x, orientation=q, linear_velocity=v, angular_velocity=w
+        )
+        results.append((scene.step(state), scene.report["contacts"]))
+    (polished, report), (plain, plain_report) = results
+    assert report.newton > 0 and report.capped == 0 and plain_report.capped == 0
+    # Undone: λ is where the sweeps had it, so the step is Gauss–Seidel's, bit for bit, after
+    # one more sweep (the one that judged the polish).
+    assert report.iterations == plain_report.iterations + 1
+    for field in ("position", "orientation", "linear_velocity", "angular_velocity"):
+        assert np.array_equal(getattr(polished, field), getattr(plain, field))
 
 
 def quadratic_roots(backend, c0, c1, c2):

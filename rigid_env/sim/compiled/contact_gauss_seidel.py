@@ -13,7 +13,9 @@ import math
 from ..contacts.solve import DISK_NEWTON_STEPS
 from .cache import njit
 
-WORK_PER_CONTACT = 9  # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep
+# scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep (then the sweep's
+# Δλ), λ before a Newton polish (``contact_newton.converge``)
+WORK_PER_CONTACT = 12
 
 
 @njit(cache=True, error_model="numpy")
@@ -177,3 +179,17 @@ def gauss_seidel(
         if converged:
             return sweep, True
     return max_iterations, False
+
+
+@njit(cache=True, error_model="numpy")
+def sweep_change(a, work, size):
+    """The last sweep's largest change of a contact velocity, max |A Δλ| (its Δλ left in
+    ``work`` by ``gauss_seidel``, r = 3), each row summed in order."""
+    b0 = 2 * size
+    peak = 0.0
+    for i in range(size):
+        acc = 0.0
+        for k in range(size):
+            acc += a[i, k] * work[b0 + k]
+        peak = max(peak, abs(acc))
+    return peak

@@ -26,7 +26,7 @@ from ..contacts.newton import (
 )
 from . import cholesky
 from .cache import njit
-from .contact_gauss_seidel import gauss_seidel, velocity_scale
+from .contact_gauss_seidel import gauss_seidel, sweep_change, velocity_scale
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -337,10 +337,15 @@ def converge(
     decomposed=False,
 ):
     """``solve.converge`` for one element: rounds of ``newton_after`` Gauss–Seidel sweeps
-    with Newton polishes between them (``decomposed`` as ``gauss_seidel``'s; the rounds after
-    the first reuse the first's). Returns (sweeps, converged, Newton steps)."""
+    with Newton polishes between them, each judged by the sweep after it (undone, with no
+    more polishes, if that sweep changes more than the last one before it; λ before the polish
+    is kept in ``work``'s last 3C floats) (``decomposed`` as ``gauss_seidel``'s; the rounds
+    after the first reuse the first's). Returns (sweeps, converged, Newton steps)."""
     sweeps = 0
     steps = 0
+    size = lam.shape[0]
+    saved = 3 * size  # work[3 size : 4 size]: λ before the polish
+    polish = newton_steps > 0
     while sweeps < max_iterations:
         chunk = min(newton_after, max_iterations - sweeps)
         more, done = gauss_seidel(
@@ -350,6 +355,17 @@ def converge(
         sweeps += more
         if done:
             return sweeps, True, steps
-        if steps < newton_steps and sweeps < max_iterations:
+        if polish and steps < newton_steps and sweeps < max_iterations:
+            before = sweep_change(a, work, size)
+            for k in range(size):
+                work[saved + k] = lam[k]
             steps += newton(a, free, target, mu, lam, extra, newton_steps - steps, tolerance)
+            more, done = gauss_seidel(a, free, target, mu, lam, extra, 3, 1, tolerance, work, True)
+            sweeps += more
+            if done:
+                return sweeps, True, steps
+            if sweep_change(a, work, size) > before:
+                for k in range(size):
+                    lam[k] = work[saved + k]
+                polish = False
     return sweeps, False, steps

@@ -20,7 +20,8 @@ corners make A, hence G, singular: the regularised normal equations, ``RIDGE``),
 backtracking (Armijo) line search on |F|² picks the step length. Where that stalls or crawls,
 ``jump`` moves λ past a change of contact mode along G's null direction (note at
 ``CRAWL_STEP``). The caller finishes with Gauss–Seidel, whose sweep test decides convergence:
-"converged" keeps the one meaning ``SolverSettings.tolerance`` states.
+"converged" keeps the one meaning ``SolverSettings.tolerance`` states; the caller also undoes a
+polish whose next sweep changes more than the last one before it (``solve.converge``).
 """
 
 from __future__ import annotations

@@ -20,6 +20,12 @@ frictional case with fixed cone radii).
 Newton polish (``converge``): an element still unconverged after a round of ``newton_after``
 sweeps is handed to a semi-smooth Newton method on the Alart–Curnier function (``newton``),
 and the next round of sweeps goes on from its answer (one sweep, when Newton found the root).
+That first sweep judges the polish: if it changes the contact velocities more than the last
+sweep before it, λ goes back to where the sweeps had it and the element is not polished again.
+On BoxLanding's trained-policy states (150 × 512 × 8 steps, 352,786 with contacts) this took
+the capped solves from 994 to 573 and the compiled physics from 3.96 to 3.62–3.70 µs per
+element step; in the speed bench's landing batch (Δt = 0.01 s, 1024 boxes, 50 steps) the
+capped solves from 170 to 56.
 
 Stopping: a batch element has converged when a whole sweep changes no contact velocity (A Δλ
 over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact velocity or target of that
@@ -127,14 +133,15 @@ class SolverSettings:
             raise ValueError(f"start must be one of {STARTS}, got {self.start!r}")
 
 
-def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
+def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=None):
     """Solve the contact problem of the module docstring for every element of a batch.
 
     ``delassus`` (N, rC, rC) with r = 3 rows per contact (normal, t₁, t₂) or r = 1 (normal
     only: ``mu`` ignored); ``free`` (N, C, r) the velocities before the impulses, ``target``
     (N, C) the normal targets (−∞ where a contact is out of play), ``mu`` (C,), ``lam`` (N, C, r)
     the start, ``extra`` (N, C) normal impulse already carried (friction budget) or None.
-    Returns ``(lam, sweeps, converged)``: sweeps (N,) used, converged (N,) bool.
+    Returns ``(lam, sweeps, converged)``: sweeps (N,) used, converged (N,) bool; ``changes``
+    (N,), when given, receives each element's last sweep change (max |A Δλ|).
     """
     size, c, r = free.shape
     lam = np.array(lam, dtype=float)
@@ -184,6 +191,8 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None):
         change = np.max(np.abs(np.einsum("nij,nj->ni", a, flat - before)), axis=-1)
         done = change <= settings.tolerance * sc
         sweeps[idx] = sweep
+        if changes is not None:
+            changes[idx] = change
         if done.any():
             lam[idx[done]] = work[done]
             converged[idx[done]] = True
@@ -252,28 +261,49 @@ def converge(delassus, free, target, mu, lam, settings, extra):
     has used ``max_iterations`` sweeps (arguments as :func:`gauss_seidel`, r = 3). A Newton
     polish that stalls (a local minimum of |F|² where the Jacobian is singular) is left by the
     next round of sweeps, from where Newton starts again. Rounds of sweeps from the same λ are
-    the same sweeps as one run, so ``newton_steps`` = 0 is plain Gauss–Seidel. Returns
-    ``(lam, sweeps, converged, newton_steps)``."""
+    the same sweeps as one run, so ``newton_steps`` = 0 is plain Gauss–Seidel.
+
+    A polish is judged by the sweep after it: if that sweep changes the contact velocities
+    more than the last sweep before it did, Newton has made things worse (it reduces |F|², not
+    Gauss–Seidel's change, and can carry λ far along the null space of a face's redundant
+    corners, where Gauss–Seidel then crawls), so λ goes back to where the sweeps had it and the
+    element is not polished again. Returns ``(lam, sweeps, converged, newton_steps)``."""
     size = len(free)
     lam = np.array(lam, dtype=float)
     sweeps = np.zeros(size, int)
     steps = np.zeros(size, int)
     converged = np.zeros(size, bool)
+    polish = np.full(size, settings.newton_steps > 0)
+    changes = np.zeros(size)
     idx = np.arange(size)
     used = 0  # every unconverged element has used the same sweeps
-    while len(idx) and used < settings.max_iterations:
-        chunk = min(settings.newton_after, settings.max_iterations - used)
-        rounds = SolverSettings(chunk, settings.tolerance)
+
+    def sweep(count):
+        """``count`` sweeps of the unconverged elements; returns those still unconverged."""
+        out = np.zeros(len(idx))
         lam[idx], more, done = gauss_seidel(
-            delassus[idx], free[idx], target[idx], mu, lam[idx], rounds, extra[idx]
+            delassus[idx],
+            free[idx],
+            target[idx],
+            mu,
+            lam[idx],
+            SolverSettings(count, settings.tolerance),
+            extra[idx],
+            out,
         )
+        changes[idx] = out
         sweeps[idx] += more
         converged[idx] = done
+        return idx[~done]
+
+    while len(idx) and used < settings.max_iterations:
+        chunk = min(settings.newton_after, settings.max_iterations - used)
+        idx = sweep(chunk)
         used += chunk
-        idx = idx[~done]
         budget = settings.newton_steps - steps[idx]
-        go = idx[budget > 0]
+        go = idx[(budget > 0) & polish[idx]]
         if len(go) and used < settings.max_iterations:
+            before, saved = changes[go], lam[go]
             lam[go], taken = newton(
                 delassus[go],
                 free[go],
@@ -281,10 +311,15 @@ def converge(delassus, free, target, mu, lam, settings, extra):
                 mu,
                 lam[go],
                 extra[go],
-                budget[budget > 0],
+                settings.newton_steps - steps[go],
                 settings.tolerance,
             )
             steps[go] += taken
+            idx = sweep(1)  # judges the polish (for the others, one more sweep)
+            used += 1
+            worse = ~converged[go] & (changes[go] > before)
+            lam[go[worse]] = saved[worse]
+            polish[go[worse]] = False
     return lam, sweeps, converged, steps
 
 
