@@ -23,7 +23,6 @@ scene and batch (``peers.landing_speed``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 import warnings
 from collections.abc import Sequence
@@ -49,20 +48,13 @@ def landing_batch(batch: int) -> tuple[sim.Scene, sim.State]:
     return scene, speed._initial(scene, initial, batch)
 
 
-def take(state: sim.State, index: np.ndarray) -> sim.State:
-    """The batch elements ``index`` of ``state`` (a new batch, in that order)."""
-    return dataclasses.replace(
-        state, **{f.name: getattr(state, f.name)[index] for f in dataclasses.fields(state)}
-    )
-
-
 def classify(scene: sim.Scene, state: sim.State) -> np.ndarray:
     """Each element's class (index into ``CLASSES``), from its step taken alone."""
     out = np.empty(len(state.position), int)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sim.ContactSolverWarning)
         for e in range(len(out)):
-            scene.step(take(state, np.array([e])))
+            scene.step(state[np.array([e])])
             report = scene.report["contacts"]
             if report.capped:
                 out[e] = 4
@@ -103,7 +95,7 @@ def measure(batch: int, block_s: float, repeats: int) -> dict[str, tuple[float, 
         if len(members) == 0:
             rows[name] = (0.0, float("nan"), 0.0)
             continue
-        cost = us_per_element(scene, take(state, np.resize(members, batch)), block_s, repeats)
+        cost = us_per_element(scene, state[np.resize(members, batch)], block_s, repeats)
         rows[name] = (len(members) / batch, cost, 0.0)
     total = sum(share * cost for share, cost, _ in rows.values() if share)
     for name, (share, cost, _) in rows.items():

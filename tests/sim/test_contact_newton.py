@@ -270,15 +270,15 @@ def test_newton_jumps_past_the_mode_change_that_stalls_it(sim_backend, name):
 
 @pytest.mark.parametrize("name, capped", [("after an impact", 1), ("settling on a face", 0)])
 @pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
-def test_without_jumps_the_first_step_is_capped(sim_backend, name, capped, monkeypatch):
+def test_without_jumps_only_the_impact_step_is_capped(sim_backend, name, capped, monkeypatch):
     # The kernels read JUMPS when they compile, so this runs the numpy path on either backend.
     monkeypatch.setattr(newton_module, "JUMPS", 0)
     assert stalled_step(landing_scene(backend="numpy"), name).capped == capped
 
 
-# A box of the speed bench's landing scene (Δt = 0.01 s, 1 s after the drop) resting on two
-# corners with speculative targets on the other two. Gauss–Seidel alone converges in tens of
-# sweeps; the Newton polish after the first round carries λ ~1e-2 N s along the null space of
+# A box of the speed bench's landing scene (Δt = 0.01 s, 1 s after the drop) settling on a face,
+# its four lowest corners 0.04-0.1 mm above the ground (speculative contacts, all four loaded
+# by the answer). Gauss–Seidel alone converges in 30 sweeps; the Newton polish after the first round carries λ ~1e-2 N s along the null space of
 # the face's corners (the next sweep changes a velocity 3e4× more than the last sweep before
 # it), from where Gauss–Seidel crawls: before the polish was judged, the step stopped at the
 # cap (500 sweeps, 50 Newton steps) on both backends.

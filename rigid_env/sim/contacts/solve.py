@@ -23,7 +23,7 @@ and the next round of sweeps goes on from its answer (one sweep, when Newton fou
 That first sweep judges the polish: if it changes the contact velocities more than the last
 sweep before it, λ goes back to where the sweeps had it and the element is not polished again.
 On BoxLanding's trained-policy states (150 × 512 × 8 steps, 352,786 with contacts) this took
-the capped solves from 994 to 573 and the compiled physics from 3.96 to 3.62–3.70 µs per
+the capped solves from 994 to 573 and the compiled physics from 3.96–3.99 to 3.62–3.70 µs per
 element step; in the speed bench's landing batch (Δt = 0.01 s, 1024 boxes, 50 steps) the
 capped solves from 170 to 56.
 
