@@ -555,7 +555,8 @@ def merge_reports(reports: Sequence[dict]) -> dict:
     """The reports of consecutive steps as one: each entry is the maximum over the steps.
 
     Numbers and flags take their maximum (a flag is True if it was in any step), arrays their
-    elementwise maximum (per-element flags OR'ed), dataclass values field by field, nested dicts
+    elementwise maximum (per-element flags OR'ed), dataclass values field by field (a field
+    with ``metadata={"merge": "sum"}``, such as an energy, is summed instead), nested dicts
     key by key; an entry missing (or ``None``) in some steps is the maximum over the others.
     So an iteration count is the most any one step used, and a count of solves stopped at a
     cap is positive iff some step stopped at its cap. Anything else keeps its last value.
@@ -576,7 +577,9 @@ def _maximum(a, b):
         return merge_reports((a, b))
     if dataclasses.is_dataclass(a) and type(a) is type(b) and not isinstance(a, type):
         changes = {
-            f.name: _maximum(getattr(a, f.name), getattr(b, f.name))
+            f.name: (_sum if f.metadata.get("merge") == "sum" else _maximum)(
+                getattr(a, f.name), getattr(b, f.name)
+            )
             for f in dataclasses.fields(a)
             if f.init
         }
@@ -591,6 +594,15 @@ def _maximum(a, b):
     if isinstance(a, (int, float, np.number)) and isinstance(b, (int, float, np.number)):
         return max(a, b)
     return b
+
+
+def _sum(a, b):
+    """A field that adds up over steps (``metadata={"merge": "sum"}``, e.g. energies)."""
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return np.asarray(a) + np.asarray(b)
 
 
 def _all_finite(state: State) -> bool:

@@ -2,7 +2,11 @@
 
 Tolerance sources (measured, then given a margin of 2-10x):
 * DOP853 at rtol = atol = 1e-13 is not converged to rounding: halving/doubling the tolerance
-  moves Ω by ~1e-9 over 20 s near the separatrix (|Ω| = 5) and ~1e-12 elsewhere.
+  moves Ω by ~1e-9 over 20 s near the separatrix (|Ω| = 5) and ~1e-12 elsewhere. Near the
+  separatrix its rounding is amplified (each rounding moves the body to a neighbouring orbit),
+  so its error there is not a fixed number across scipy and numpy releases: the bound is twice
+  the spread of its own answers at rtol = atol = 1e-13, 5e-14 and 3e-14 (measured 2e-10 to
+  1.3e-8 over these cases), computed in the test.
 * The Jacobi solution agrees with a 40-digit mpmath evaluation of the same formulas to ~4e-11
   near the separatrix (ellipj sees k² = 1 - 8e-6 only to double precision) and to rounding
   elsewhere.
@@ -121,7 +125,15 @@ def test_jacobi_matches_dop853(name, dop853_runs):
     # t = 0 reproduces Ω0 to rounding: near the separatrix dn = √(1 - k² sn²) with k² ≈ 1 loses
     # a few digits to cancellation (measured 6e-14 at |Ω| = 5).
     np.testing.assert_allclose(omega_jac[0], omega_body, rtol=0, atol=2e-13)
-    tol = 5e-9 if name in NEAR_SEPARATRIX else 2e-11  # DOP853's own error, see module doc
+    tol = 2e-11  # DOP853's own error, see module doc
+    if name in NEAR_SEPARATRIX:
+        _, _, q0, w0 = _initial(name)
+        answers = [omega_dop]
+        for rtol in (5e-14, 3e-14):
+            q, w = torque_free_dop853(inertia, q0, w0, TIMES, rtol=rtol, atol=rtol)
+            answers.append(rotate_inverse(quat_to_matrix(q), w))
+        spread = max(np.abs(a - b).max() for a in answers for b in answers)
+        tol = 2 * spread
     assert np.abs(omega_jac - omega_dop).max() < tol
 
 

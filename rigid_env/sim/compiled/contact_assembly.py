@@ -17,6 +17,7 @@ import numpy as np
 from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
 from . import bodies
 from .cache import njit
+from .forces import spring_table
 from .ground import ground_data
 from .layout import ARM, CONTACT, ENGAGED, GAP, JT, PATH_GAP, REPORT, T1, U1, Q, V, W
 from .registry import Kernel, register
@@ -25,9 +26,9 @@ from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
 # Index of the integer parameters (``I``) and float parameters (``F``) in the data tuple.
 I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY, I_C, I_N, I_V = range(9)
 F_DT, F_TOLERANCE = range(2)
-# The warm start's flag and the Newton polish's settings sit at the end of the integer array
-# (after the index tables).
-I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -3, -2, -1
+# The spring count, the warm start's flag and the Newton polish's settings sit at the end of the
+# integer array (after the index tables).
+I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -4, -3, -2, -1
 
 
 def contact_data(scene) -> tuple | None:
@@ -61,8 +62,9 @@ def contact_data(scene) -> tuple | None:
         n,
         v,
     ]
-    newton = [int(settings.warm_start), settings.newton_after, settings.newton_steps]
-    ints = np.concatenate((head, lay.a, shaped, newton)).astype(np.int64)
+    springs = spring_table(model)  # the loads of the energy guard's W (``contacts.energy``)
+    tail = [len(springs), int(settings.warm_start), settings.newton_after, settings.newton_steps]
+    ints = np.concatenate((head, lay.a, shaped, tail)).astype(np.int64)
     body = bodies.body_data(model)
     floats = np.concatenate(
         [
@@ -78,6 +80,7 @@ def contact_data(scene) -> tuple | None:
             body.reshape(-1),
             points.reshape(-1),
             foot,
+            springs.reshape(-1),
         ]
     ).astype(float)
     # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
@@ -107,6 +110,7 @@ def block3(flat, start, a, b, c):
 # Where each block of ``contact_data``'s arrays starts (``offsets``' tuple).
 O_OWNER, O_SHAPED = 0, 1  # in ints
 O_MU, O_EPS, O_THRESHOLD, O_MASS, O_RIM, O_L, O_LINV, O_BODY, O_POINTS, O_FOOT = range(2, 12)
+O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -131,6 +135,7 @@ def offsets(ints):
         o_body,
         o_points,
         o_points + 3 * g * v,
+        o_points + 3 * g * v + g,
     )
 
 

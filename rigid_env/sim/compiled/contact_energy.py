@@ -21,26 +21,34 @@ from .contact_assembly import (
     I_GROUND,
     I_K,
     I_N,
+    I_SPRINGS,
     I_V,
     O_BODY,
     O_FOOT,
     O_MASS,
     O_POINTS,
     O_SHAPED,
+    O_SPRINGS,
     contact_data,
     offsets,
     tuple9,
 )
+from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_K, S_REST, SPRING_WIDTH
 from .layout import (
     CONTACT,
     DISPLACEMENT,
     ELAPSED,
+    ENERGY_REMOVED,
     ENGAGED,
+    FORCE,
+    LOADED,
     PATH_Q,
     Q0,
     REPORT,
+    TORQUE,
     U1,
     UNPAID_ENERGY,
+    UPDATE_DOT,
     V0,
     W0,
     X0,
@@ -50,7 +58,15 @@ from .layout import (
     X,
 )
 from .registry import Kernel, register
-from .rotation import quat_exp, quat_multiply, quat_normalize, quat_rotate, quat_to_matrix
+from .rotation import (
+    cross,
+    quat_exp,
+    quat_multiply,
+    quat_normalize,
+    quat_rotate,
+    quat_to_matrix,
+)
+from .steps import BODY_TORQUE
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -151,11 +167,84 @@ def base_position(st, e, b, elapsed):
     )
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def applied_rate(st, e, b, v, w):
+    """Body b's applied loads' power F·v + τ·ω (``energy.load_rates``: the world force and
+    torque and the body torque turned at q₀), at velocities v, ω."""
+    fa, ta, tb = st[FORCE], st[TORQUE], st[BODY_TORQUE]
+    turned = quat_rotate(vec4(st[Q0], e, b), vec3(tb, e, b))
+    t = (ta[e, b, 0] + turned[0], ta[e, b, 1] + turned[1], ta[e, b, 2] + turned[2])
+    return dot3(vec3(fa, e, b), v) + dot3(t, w)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def has_load(st, e, b):
+    """Whether body b carries an applied force, torque or body torque (``energy.load_rates``
+    is None without any)."""
+    fa, ta, tb = st[FORCE], st[TORQUE], st[BODY_TORQUE]
+    found = False
+    for i in range(3):
+        found = found or fa[e, b, i] != 0.0 or ta[e, b, i] != 0.0 or tb[e, b, i] != 0.0
+    return found
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def spring_rate(floats, o, s, st, e, v, w):
+    """Spring s's elastic force's power on its body (``spring_body``) at that body's velocities
+    v, ω (``forces.Springs.wrench`` at zero velocity, the start pose: its damping left out, as
+    ``energy.load_rates``); the table read in place."""
+    at = o[O_SPRINGS] + SPRING_WIDTH * s
+    b = int(floats[at + S_BODY])
+    k, rest = floats[at + S_K], floats[at + S_REST]
+    arm = quat_rotate(
+        vec4(st[Q0], e, b),
+        (floats[at + S_ATTACH], floats[at + S_ATTACH + 1], floats[at + S_ATTACH + 2]),
+    )
+    x0 = st[X0]
+    d = (
+        x0[e, b, 0] + arm[0] - floats[at + S_ANCHOR],
+        x0[e, b, 1] + arm[1] - floats[at + S_ANCHOR + 1],
+        x0[e, b, 2] + arm[2] - floats[at + S_ANCHOR + 2],
+    )
+    if rest > 0:
+        length = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        a = -k * (length - rest) / (length if length > 0 else 1.0)
+    else:
+        a = -k
+    f = (a * d[0], a * d[1], a * d[2])
+    return dot3(f, v) + dot3(cross(arm, f), w)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def spring_body(floats, o, s):
+    return int(floats[o[O_SPRINGS] + SPRING_WIDTH * s + S_BODY])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def trapezoid_terms(floats, at, q, u0v, u0w, v, w):
+    """vᵀ m v₀ + (M ω)·ω₀ and vᵀ m v + ωᵀ M ω of one body (M at orientation q), for
+    ``energy_removed``."""
+    rot = quat_to_matrix(q)
+    m0 = tuple9(floats, at + INERTIA)
+    spin = inertia_times(floats[at + DIAGONAL] != 0.0, m0, rot, w)
+    m = floats[at]
+    cross_term = m * dot3(v, u0v) + dot3(spin, u0w)
+    square = m * dot3(v, v) + dot3(spin, w)
+    return cross_term, square
+
+
 # Inlined into the driver: it runs for every element (see ``driver``).
 @njit(cache=True, error_model="numpy", inline="always")
 def limit_energy(e, st, d):
-    """``LimitEnergy`` for one engaged element: scale its velocities so the step ends with no
-    more energy than max(E_start, E_free); the impacts' path becomes the displacement."""
+    """``LimitEnergy`` for one engaged element: scale its velocities so that the step keeps
+    ``contacts.energy``'s invariant (1), E_end − W(u) ≤ max(E_start, E_free − W(u₁)); the
+    impacts' path becomes the displacement. Leaves in the report row, for ``separate_contacts``,
+    whether loads act (``LOADED``) and the energy removed so far."""
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
@@ -170,10 +259,14 @@ def limit_energy(e, st, d):
     tail = dt - elapsed
     # Per body: KE at the start (u₀ at q₀), without contacts (u₁ at q₀, positions x₀ + Δt u₁)
     # and of u along the path (q_path: KE at exp(h ω) q_path equals KE at q_path); PE at x₀,
-    # at the base x₀ + translation and at its end base + (Δt − elapsed) v.
+    # at the base x₀ + translation and at its end base + (Δt − elapsed) v; the loads' power
+    # at u₁ and at u (W / Δt).
     ke_start = ke_free = ke = 0.0
     p_start = p_free = p_base = p_tail = 0.0
+    rate_free = rate = 0.0
+    loaded = ints[I_SPRINGS] > 0
     for b in range(n):
+        loaded = loaded or has_load(st, e, b)
         g = slot_of(ints, o, b)
         qb0, xb0 = vec4(q0, e, b), vec3(x0, e, b)
         ke_start += kinetic_term(
@@ -184,19 +277,29 @@ def limit_energy(e, st, d):
         ke_free += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, qb0, v1, w1)
         x_free = (xb0[0] + dt * v1[0], xb0[1] + dt * v1[1], xb0[2] + dt * v1[2])
         p_free += potential_term(floats, o, b, x_free)
-        vb = vec3(v, e, b)
+        vb, wb = vec3(v, e, b), vec3(w, e, b)
+        rate_free += applied_rate(st, e, b, v1, w1)
+        rate += applied_rate(st, e, b, vb, wb)
         q_path = path_orientation(st, e, b, g, k, elapsed)
-        ke += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, q_path, vb, vec3(w, e, b))
+        ke += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, q_path, vb, wb)
         base = base_position(st, e, b, elapsed)
         p_base += potential_term(floats, o, b, base)
         x_tail = (base[0] + tail * vb[0], base[1] + tail * vb[1], base[2] + tail * vb[2])
         p_tail += potential_term(floats, o, b, x_tail)
+    for s in range(ints[I_SPRINGS]):
+        b = spring_body(floats, o, s)
+        v1, w1 = velocity_after_update(contact, v, w, e, b, slot_of(ints, o, b), k)
+        rate_free += spring_rate(floats, o, s, st, e, v1, w1)
+        rate += spring_rate(floats, o, s, st, e, vec3(v, e, b), vec3(w, e, b))
+    work = dt * rate  # W(u); W(f u) = f W(u)
     pe0 = potential_end(has_gravity, p_start)
     e_start = ke_start + pe0
-    e_free = ke_free + potential_end(has_gravity, p_free)
+    e_free = ke_free + potential_end(has_gravity, p_free) - dt * rate_free
     pe_base = potential_end(has_gravity, p_base) - pe0
-    lin = potential_end(has_gravity, p_tail) - pe0 - pe_base
-    room = max(e_start, e_free) - pe0 - pe_base
+    lin = potential_end(has_gravity, p_tail) - pe0 - pe_base - work
+    reference = max(e_start, e_free)
+    room = reference - pe0 - pe_base
+    slack = 1e-12 * abs(e_start) + 1e-300
     # energy.scale_to: the largest f ∈ [0, 1] with f² ke + f lin ≤ room.
     room_c = max(room, 0.0)
     if ke + lin <= room_c * (1 + 1e-12) + 1e-300:
@@ -223,7 +326,7 @@ def limit_energy(e, st, d):
                     z += deep
             total += potential_term(floats, o, b, (base[0] + h * vb[0], base[1] + h * vb[1], z))
         pe_end = potential_end(has_gravity, total)
-        over = f * f * ke + pe_end - pe0 - pe_base > room + 1e-12 * abs(e_start) + 1e-300
+        over = f * f * ke + pe_end - pe0 - pe_base - f * work > room + slack
         if not over:
             break
         f = 0.5 * f
@@ -232,14 +335,29 @@ def limit_energy(e, st, d):
     moved = elapsed > 0
     q = st[Q]
     disp = st[DISPLACEMENT]
+    # energy_removed's trapezoid (``energy.contact_work``) from the velocities the guard leaves,
+    # −½ Σ (u − u₁)ᵀ M (u₀ + u) with M at q₀, and u₁ᵀ M u for ``separate_contacts``.
+    trapezoid = 0.0
+    update_dot = 0.0
     for b in range(n):
         q_path = (0.0, 0.0, 0.0, 1.0)
+        g = slot_of(ints, o, b)
         if moved:  # (before the body's ω is scaled: q_path turns a body without contacts)
-            q_path = path_orientation(st, e, b, slot_of(ints, o, b), k, elapsed)
+            q_path = path_orientation(st, e, b, g, k, elapsed)
+        v1, w1 = velocity_after_update(contact, v, w, e, b, g, k)
         if f < 1:
             for j in range(3):
                 v[e, b, j] = v[e, b, j] * f
                 w[e, b, j] = w[e, b, j] * f
+        at = o[O_BODY] + BODY_WIDTH * b
+        qb0, vb0, wb0 = vec4(q0, e, b), vec3(v0, e, b), vec3(w0, e, b)
+        vb, wb = vec3(v, e, b), vec3(w, e, b)
+        dv = (vb[0] - v1[0], vb[1] - v1[1], vb[2] - v1[2])
+        dw = (wb[0] - w1[0], wb[1] - w1[1], wb[2] - w1[2])
+        mv = (vb0[0] + vb[0], vb0[1] + vb[1], vb0[2] + vb[2])
+        mw = (wb0[0] + wb[0], wb0[1] + wb[1], wb0[2] + wb[2])
+        trapezoid += trapezoid_terms(floats, at, qb0, dv, dw, mv, mw)[0]
+        update_dot += trapezoid_terms(floats, at, qb0, v1, w1, vb, wb)[0]
         if moved:  # the position update turns q by Δt ω: start it at exp(−elapsed ω) q_path
             h = -elapsed
             back = quat_exp((h * w[e, b, 0], h * w[e, b, 1], h * w[e, b, 2]))
@@ -249,15 +367,19 @@ def limit_energy(e, st, d):
         # The position update adds translation − elapsed v to x₀ + Δt v (``Path.displacement``).
         for j in range(3):
             disp[e, b, j] = disp[e, b, j] - elapsed * v[e, b, j] if elapsed > 0 else 0.0
+    report[e, LOADED] = 1.0 if loaded else 0.0
+    report[e, UPDATE_DOT] = update_dot
+    report[e, ENERGY_REMOVED] = -0.5 * trapezoid
 
 
 # Inlined into the driver: it runs for every element (see ``driver``).
 @njit(cache=True, error_model="numpy", inline="always")
 def separate_contacts(e, st, d):
     """``SeparateContacts`` for one engaged element: remove the overlap the step left and pay
-    the lift's potential energy out of the kinetic energy (what cannot be paid: UNPAID).
-    The lift goes into x as it is found, the potential energy summed before and after: the
-    operations of separating a copy, without the copy."""
+    the lift's potential energy out of the kinetic energy (``energy.pay``: keeping E − W
+    unchanged; what cannot be paid without loads: UNPAID), then ``energy_removed``'s separation
+    share. The lift goes into x as it is found, the potential energy summed before and after:
+    the operations of separating a copy, without the copy."""
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
@@ -282,24 +404,50 @@ def separate_contacts(e, st, d):
     for b in range(n):
         after += potential_term(floats, o, b, vec3(x, e, b))
     lift = potential_end(has_gravity, after) - potential_end(has_gravity, before)
-    if lift > 0:
-        v, w = st[V], st[W]
-        # KE at the end orientation: that of q₀ or of the path (``LimitEnergy``'s ``rot0``).
-        q_end = q if report[e, ELAPSED] > 0 else st[Q0]
-        ke = 0.0
-        for b in range(n):
-            at = o[O_BODY] + BODY_WIDTH * b
-            ke += kinetic_term(floats, at, vec4(q_end, e, b), vec3(v, e, b), vec3(w, e, b))
-        # energy.pay
+    report[e, ENERGY_REMOVED] -= lift
+    if not lift > 0:
+        return
+    v, w = st[V], st[W]
+    # KE at the end orientation: that of q₀ or of the path (``LimitEnergy``'s ``rot0``).
+    q_end = q if report[e, ELAPSED] > 0 else st[Q0]
+    ke = rate = 0.0
+    for b in range(n):
+        at = o[O_BODY] + BODY_WIDTH * b
+        vb, wb = vec3(v, e, b), vec3(w, e, b)
+        ke += kinetic_term(floats, at, vec4(q_end, e, b), vb, wb)
+        rate += applied_rate(st, e, b, vb, wb)
+    loaded = report[e, LOADED] != 0.0
+    for s in range(ints[I_SPRINGS]):
+        b = spring_body(floats, o, s)
+        rate += spring_rate(floats, o, s, st, e, vec3(v, e, b), vec3(w, e, b))
+    if not loaded:  # energy.pay
         keep = max(ke - lift, 0.0)
-        factor = math.sqrt(keep / (ke if ke > 0 else 1.0))
+        f = math.sqrt(keep / (ke if ke > 0 else 1.0))
         unpaid = max(lift - ke, 0.0)
-        for b in range(n):
-            for j in range(3):
-                v[e, b, j] = v[e, b, j] * factor
-                w[e, b, j] = w[e, b, j] * factor
         if unpaid > 0:
             report[e, UNPAID_ENERGY] = unpaid
+    else:  # energy.pay with loads: f² ke − f W = ke − W − lift, the larger root
+        work = floats[F_DT] * rate
+        disc = work * work + 4 * ke * (ke - work - lift)
+        f = 1.0
+        if ke > 0 and disc >= 0:
+            f = min(max((work + math.sqrt(disc)) / (2 * ke), 0.0), 1.0)
+    # energy_removed with u → f u: −½ Σ (f uᵀMu₀ + f² uᵀMu − f u₁ᵀMu) in place of the
+    # f = 1 terms (u₁ᵀMu₀ is unchanged), M at q₀.
+    u_u0 = u_u = 0.0
+    for b in range(n):
+        at = o[O_BODY] + BODY_WIDTH * b
+        qb0 = vec4(st[Q0], e, b)
+        terms = trapezoid_terms(
+            floats, at, qb0, vec3(st[V0], e, b), vec3(st[W0], e, b), vec3(v, e, b), vec3(w, e, b)
+        )
+        u_u0 += terms[0]
+        u_u += terms[1]
+        for j in range(3):
+            v[e, b, j] = v[e, b, j] * f
+            w[e, b, j] = w[e, b, j] * f
+    dot = report[e, UPDATE_DOT]
+    report[e, ENERGY_REMOVED] -= 0.5 * ((f - 1) * u_u0 + (f * f - 1) * u_u - (f - 1) * dot)
 
 
 @register("limit_energy")

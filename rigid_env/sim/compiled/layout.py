@@ -39,4 +39,9 @@ TOUCHED = 5  # 1.0 if a contact carried an impulse this step
 ELAPSED = 6  # scratch, not reported: time into the step of the last impact (``Path.elapsed``)
 NEWTON = 7  # Newton steps of its solve's polish
 WARMED = 8  # 1.0 if its solve started from the previous step's impulses
-REPORT_WIDTH = 9
+ENERGY_REMOVED = 9  # energy (J) the contacts took out (``contacts.energy``); summed over steps
+# Scratch, not reported: what ``limit_energy`` hands ``separate_contacts``: 1.0 if loads other
+# than gravity act (``energy.pay`` keeps E − W then), and Σ_b u₁_bᵀ M_b u_b (``energy_removed``).
+LOADED = 10
+UPDATE_DOT = 11
+REPORT_WIDTH = 12

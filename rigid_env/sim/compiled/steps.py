@@ -13,6 +13,7 @@ from .cache import njit
 from .layout import (
     CONTACT,
     DISPLACEMENT,
+    ENERGY_REMOVED,
     Q0,
     REPORT,
     STEP_TUPLE_SIZE,
@@ -84,7 +85,7 @@ def finite(e, st):
 def carry(e, st, total):
     """Between two steps of one call: the result becomes the state passed in (the start slots
     are the driver's own copies then), the contact slots are zeroed and the report row is
-    folded into ``total`` (elementwise maximum) and zeroed: the next step sees what a call of
+    folded into ``total`` (elementwise maximum; the energy removed adds up) and zeroed: the next step sees what a call of
     its own would (``begin`` does the rest), but for the warm-start columns, which the contact
     solve reads only with ``SolverSettings.warm_start``."""
     x0, q0, v0, w0 = st[X0], st[Q0], st[V0], st[W0]
@@ -102,13 +103,20 @@ def carry(e, st, total):
             contact[e, c, i] = 0.0
     report = st[REPORT]
     for i in range(report.shape[1]):
-        total[e, i] = max(total[e, i], report[e, i])
+        if i == ENERGY_REMOVED:  # an energy: the call's is the sum over its steps
+            total[e, i] = total[e, i] + report[e, i]
+        else:
+            total[e, i] = max(total[e, i], report[e, i])
         report[e, i] = 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def fold(e, st, total):
-    """After the last of several steps: the report row becomes the maximum over the steps."""
+    """After the last of several steps: the report row becomes the maximum over the steps (the
+    sum, for the energy removed)."""
     report = st[REPORT]
     for i in range(report.shape[1]):
-        report[e, i] = max(total[e, i], report[e, i])
+        if i == ENERGY_REMOVED:
+            report[e, i] = total[e, i] + report[e, i]
+        else:
+            report[e, i] = max(total[e, i], report[e, i])

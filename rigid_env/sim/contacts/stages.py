@@ -10,14 +10,15 @@ Between a semi-implicit integrator's ``integrate_velocity`` and ``integrate_posi
 * ``solve_contacts`` solves the inelastic problem with friction to the stated tolerance
   (``solve``) and writes ``ctx.report["contacts"]`` (a :class:`ContactReport`);
 * ``limit_energy`` scales the velocities down if the step would end with more energy than it
-  started with (``energy``), and hands the impacts' path to the position update (its
-  translation as ``ctx.displacement``, its orientation as the ``ctx.q`` the rotation starts
-  from);
+  started with plus the work of the applied loads along its motion (``energy``'s invariant),
+  and hands the impacts' path to the position update (its translation as
+  ``ctx.displacement``, its orientation as the ``ctx.q`` the rotation starts from);
 
 and after ``integrate_position``:
 
 * ``separate_contacts`` removes the penetration the linearised step left (rotation over the
-  step) by moving bodies, and pays the potential energy of the lift out of the kinetic energy.
+  step) by moving bodies, pays the potential energy of the lift out of the kinetic energy, and
+  reports the energy the contacts removed (``ContactReport.energy_removed``).
 
 A solve that stops at ``max_iterations`` or ``max_impacts`` instead of converging is counted in
 the report's ``capped`` and raises a :class:`ContactSolverWarning`.
@@ -26,7 +27,7 @@ the report's ``capped`` and raises a :class:`ContactSolverWarning`.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -61,7 +62,9 @@ class ContactReport:
     in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
     (N,) bool) whether a contact carried an impulse this step — a touch sensor that also sees
     a bounce which began and ended within the step (the positions at the step's ends may both
-    be clear of the ground).
+    be clear of the ground); ``energy_removed``: per batch element (flattened, (N,) float), the
+    energy (J) the contacts took out of the step, ``energy``'s ``removed`` (0 for an element with
+    no contact within reach; over a call of several steps, the sum over them).
     """
 
     engaged: int = 0
@@ -73,6 +76,7 @@ class ContactReport:
     tolerance: float = 0.0
     unpaid_energy: float = 0.0
     touched: np.ndarray | None = None
+    energy_removed: np.ndarray | None = field(default=None, metadata={"merge": "sum"})
 
     @property
     def converged(self) -> bool:
@@ -189,7 +193,9 @@ class SolveContacts:
         size = ctx.x.reshape(-1, ctx.model.n_bodies, 3).shape[0]
         touched = np.zeros(size, bool)
         if len(idx) == 0:
-            ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance, touched=touched)
+            ctx.report[REPORT_KEY] = ContactReport(
+                tolerance=settings.tolerance, touched=touched, energy_removed=np.zeros(size)
+            )
             ctx.warm = None
             return
         rows = hits["rows"]
@@ -230,6 +236,7 @@ class SolveContacts:
             warm_started=0 if warm is None else int(np.sum(warm[1])),
             tolerance=settings.tolerance,
             touched=touched,
+            energy_removed=np.zeros(size),
         )
         ctx.report[REPORT_KEY] = report
         if report.capped:
@@ -248,7 +255,8 @@ def warn_capped(stacklevel: int) -> None:
 
 
 class LimitEnergy:
-    """Before the position update: the step's contact response adds no energy (``energy``)."""
+    """Before the position update: the contacts add no energy, the loads do their full work
+    (``energy``'s invariant (1))."""
 
     name = "limit_energy"
 
@@ -268,6 +276,10 @@ class LimitEnergy:
         pe0 = energy.potential(model, x0)
         e_start = energy.kinetic(model, rot0, u0) + pe0
         e_free = energy.energy(model, x0 + dt * u1[..., :3], rot0, u1)
+        rates = energy.load_rates(ctx, idx)
+        work = energy.work(rates, u, dt)  # W(u); W(f u) = f W(u)
+        if rates is not None:
+            e_free = e_free - energy.work(rates, u1, dt)
         path = hits.get("path")
         # The orientation follows the path: turned by each interval's ω up to the last event
         # (q_path), then by the final ω over the rest of the step, so the end orientation is
@@ -286,7 +298,11 @@ class LimitEnergy:
         tail = dt - (0.0 if path is None else path.elapsed)
         pe_base = energy.potential(model, base) - pe0
         lin = energy.potential(model, base + tail[:, None, None] * u[..., :3]) - pe0 - pe_base
-        room = np.maximum(e_start, e_free) - pe0 - pe_base
+        if rates is not None:
+            lin = lin - work
+        reference = np.maximum(e_start, e_free)
+        room = reference - pe0 - pe_base
+        slack = 1e-12 * np.abs(e_start) + 1e-300  # rounding of the energies
         f = energy.scale_to(ke, lin, room)
         # The end configuration's overlap (rotation over the step) lifts the body too: halve
         # f until the separated end positions fit as well (f = 0 stays at the start).
@@ -296,13 +312,17 @@ class LimitEnergy:
                 quat_multiply(quat_exp((f * tail)[:, None, None] * u[..., 3:]), q0)
             )
             pe_end = energy.potential(model, separated(self.layout, x_end, q_end))
-            over = f * f * ke + pe_end - pe0 - pe_base > room + 1e-12 * np.abs(e_start) + 1e-300
+            excess = f * f * ke + pe_end - pe0 - pe_base
+            if rates is not None:
+                excess = excess - f * work
+            over = excess > room + slack
             if not over.any():
                 break
             f = np.where(over, 0.5 * f, f)
         else:
             f = np.where(over, 0.0, f)
         hits["rot0"] = rot_path  # the end orientation's KE, for ``SeparateContacts``
+        hits["guard"] = (rates, rot0, u0)
         if np.any(f < 1):
             u = u * f[:, None, None]
             _write(ctx, idx, u)
@@ -351,7 +371,8 @@ def separated(lay: Layout, x, q):
 
 class SeparateContacts:
     """After the position update: remove what overlap is left (``separated``) and pay the
-    potential energy of the lift out of the kinetic energy."""
+    potential energy of the lift out of the kinetic energy, keeping E − W unchanged
+    (``energy``); then the step's ``energy_removed``."""
 
     name = "separate_contacts"
 
@@ -361,24 +382,31 @@ class SeparateContacts:
     def __call__(self, ctx) -> None:
         hits = _hits(ctx)
         idx = hits.get("engaged", ())
+        report = ctx.report.get(REPORT_KEY)
         if len(idx) == 0:
             return
+        model, dt = ctx.model, ctx.dt
+        rates, rot0, u0 = hits["guard"]
         x, q = _flat(ctx)
         x_sub = separated(self.layout, x[idx], q[idx])
-        if x_sub is x[idx] or np.array_equal(x_sub, x[idx]):
-            return
-        model = ctx.model
-        lift = energy.potential(model, x_sub) - energy.potential(model, x[idx])
-        if np.any(lift > 0):
-            u = _velocities(ctx)[idx]
-            factor, unpaid = energy.pay(energy.kinetic(model, hits["rot0"], u), lift)
-            _write(ctx, idx, u * factor[:, None, None])
-            report = ctx.report.get(REPORT_KEY)
-            if report is not None and np.any(unpaid > 0):
-                ctx.report[REPORT_KEY] = replace(report, unpaid_energy=float(np.max(unpaid)))
-        x = np.array(x)
-        x[idx] = x_sub
-        ctx.x = x.reshape(ctx.x.shape)
+        u = _velocities(ctx)[idx]
+        lift = np.zeros(len(idx))
+        if x_sub is not x[idx] and not np.array_equal(x_sub, x[idx]):
+            lift = energy.potential(model, x_sub) - energy.potential(model, x[idx])
+            if np.any(lift > 0):
+                ke = energy.kinetic(model, hits["rot0"], u)
+                factor, unpaid = energy.pay(ke, lift, energy.work(rates, u, dt), rates)
+                u = u * factor[:, None, None]
+                _write(ctx, idx, u)
+                if report is not None and np.any(unpaid > 0):
+                    report = replace(report, unpaid_energy=float(np.max(unpaid)))
+            x = np.array(x)
+            x[idx] = x_sub
+            ctx.x = x.reshape(ctx.x.shape)
+        if report is not None:
+            removed = np.zeros(len(report.touched))
+            removed[idx] = energy.contact_work(model, rot0, u0, hits["u1"], u) - lift
+            ctx.report[REPORT_KEY] = replace(report, energy_removed=removed)
 
 
 __all__ = [
