@@ -23,7 +23,14 @@ from agents import evaluate, main_job, run_folder, train_cli
 from agents.train import resume, train
 from rigid_env import cli
 from rigid_env.bench import __main__ as bench_cli
-from rigid_env.bench import env_speed
+from rigid_env.bench import (
+    contact_solve,
+    env_speed,
+    landing_cost,
+    readme,
+    reorient_frame,
+    step_cost,
+)
 from rigid_env.cli import UsageError
 
 ID = "RigidEnv/Reorient-v0"
@@ -34,6 +41,11 @@ COMMANDS = {
     "main_job": (main_job.main, main_job.PROG),
     "bench": (bench_cli.main, bench_cli.PROG),
     "env_speed": (env_speed.main, env_speed.PROG),
+    "contact_solve": (contact_solve.main, contact_solve.PROG),
+    "landing_cost": (landing_cost.main, landing_cost.PROG),
+    "step_cost": (step_cost.main, step_cost.PROG),
+    "reorient_frame": (reorient_frame.main, reorient_frame.PROG),
+    "readme": (readme.main, readme.PROG),
 }
 
 
@@ -245,6 +257,45 @@ BENCH_CASES = [
     ("env_speed", [ID, "--num-envs", "0"], "--num-envs"),
     ("env_speed", [ID, "--seed", "-1"], "--seed"),
     ("env_speed", ["NoSuch-v0"], "unknown env id"),
+    ("env_speed", [ID, "--num-envs", "1000000000000"], "--num-envs 1000000000000"),
+    ("contact_solve", ["--dt", "0"], "--dt"),
+    ("contact_solve", ["--dt", "-0.01"], "--dt"),
+    ("contact_solve", ["--dt", "nan"], "--dt"),
+    ("contact_solve", ["--dt", "inf"], "--dt"),
+    (
+        "contact_solve",
+        ["--dt", "1e300", "--steps", "5", "--only", "landing", "--starts", "particle"],
+        "--dt 1e+300: the step diverged",
+    ),  # fmt: skip
+    ("contact_solve", ["--steps", "-1"], "--steps"),
+    ("contact_solve", ["--steps", "0"], "--steps"),
+    ("contact_solve", ["--steps", "100000000000000"], "needs ~"),
+    ("contact_solve", ["--landing-batch", "0"], "--landing-batch"),
+    ("contact_solve", ["--landing-batch", "1000000000000"], "--landing-batch 1000000000000"),
+    ("contact_solve", ["--rollout", "boxlanding", "--episodes", "0"], "--episodes"),
+    ("contact_solve", ["--rollout", "boxlanding", "--episodes", "10000000000"], "needs ~"),
+    ("contact_solve", ["--rollout", "boxlanding", "--newton-after", "0"], "--newton-after"),
+    ("contact_solve", ["--rollout", "boxlanding", "--newton-steps", "-1"], "--newton-steps"),
+    ("contact_solve", ["--rollout", "boxlanding", "--policy", "missing.zip"], "no such file"),
+    ("contact_solve", ["--rollout", "boxlanding", "--policy", "bad.zip"], "cannot load"),
+    ("landing_cost", ["--batch", "0"], "--batch"),
+    ("landing_cost", ["--batch", "1000000000000"], "--batch 1000000000000 needs ~"),
+    ("landing_cost", ["--repeats", "0"], "--repeats"),
+    ("landing_cost", ["--block", "0"], "--block"),
+    ("landing_cost", ["--block", "nan"], "--block"),
+    ("step_cost", ["--repeats", "0"], "--repeats"),
+    ("step_cost", ["--repeats", "-3"], "--repeats"),
+    ("step_cost", ["--block", "-1"], "--block"),
+    ("reorient_frame", ["--episodes", "0"], "--episodes"),
+    ("reorient_frame", ["--num-envs", "0"], "--num-envs"),
+    ("reorient_frame", ["--num-envs", "1000000000000"], "needs ~"),
+    ("reorient_frame", ["--seconds", "0"], "--seconds"),
+    ("readme", ["--readme", "nowhere.md"], "--readme"),
+    (
+        "readme",
+        ["--readme", str(ROOT / "README.md"), "--check", "--results", "notes"],
+        "--results: cannot render",
+    ),  # fmt: skip
 ]
 
 
@@ -271,6 +322,8 @@ def test_bugs_keep_their_traceback(monkeypatch):
 
 SUBPROCESS_CASES = [  # one per entry point; each a mistake found before torch is imported
     (["agents.train", "--timesteps", "-5"], "--timesteps"),
+    (["rigid_env.bench.landing_cost", "--repeats", "0"], "--repeats"),
+    (["rigid_env.bench.contact_solve", "--dt", "0"], "--dt"),
     (["agents.evaluate", "--episodes", "0"], "--episodes"),
     (["agents", "--out", "done"], "already holds a run"),
     (["rigid_env.bench", "accuracy", "--out", "file.txt"], "--out"),
