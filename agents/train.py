@@ -377,7 +377,7 @@ class _Session:
             raise
         except OSError as error:
             self._record_end("failed")
-            if error.filename is None:
+            if error.filename is None and cli.is_fault(error):
                 raise OSError(error.errno, error.strerror, str(self.out)) from error
             raise
         except Exception:

@@ -499,3 +499,25 @@ def test_a_hand_edited_run_json_on_resume_is_one_line(interrupted_run, tmp_path,
     assert_usage_error("train", ["--resume", str(run)], expected, capsys, tmp_path)
     with pytest.raises(UsageError, match=re.escape(expected)):  # the library refuses alike
         resume(run, progress=False)
+
+
+def test_memory_estimates_count_the_process_limit(monkeypatch):
+    """``ulimit -v`` (RLIMIT_AS) lowers what is available below the machine's memory."""
+    import resource
+
+    from rigid_env import resources
+
+    resources.check_envs(ID, 200_000, "--episodes")  # ~200 MB: fits a test machine
+    real = resource.getrlimit
+    limit = 64 * 2**20
+    monkeypatch.setattr(
+        resource,
+        "getrlimit",
+        lambda which: (
+            (limit, resource.RLIM_INFINITY) if which == resource.RLIMIT_AS else real(which)
+        ),
+    )
+    assert resources.available_memory() == limit
+    with pytest.raises(UsageError, match=r"--episodes 200000 \(RigidEnv/Reorient-v0\) needs ~"
+                       r"195 MiB, this machine has 64 MiB available"):  # fmt: skip
+        resources.check_envs(ID, 200_000, "--episodes")
