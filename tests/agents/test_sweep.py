@@ -651,3 +651,23 @@ def test_sweep_entry_point_is_one_line_without_traceback(tmp_path):
     )  # fmt: skip
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert "--num-cpus" in proc.stderr and "usage:" not in proc.stderr
+
+
+def test_ctrl_c_before_tune_runs_exits_130_and_the_sweep_resumes(tmp_path, capsys, monkeypatch):
+    """While Ray starts (no Tune to ask yet) Ctrl-C ends the sweep at once; sweep.json is
+    written, so --resume starts its trials (Tune saved no state: afresh)."""
+    sweep_without_ray(monkeypatch)
+
+    def connect(*args):
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(sweep, "connect", connect)
+    out = tmp_path / "s"
+    code = cli.run(sweep.main, sweep.PROG, ["--seeds", "1", "--set", *TINY, "--out", str(out)])
+    assert code == cli.EXIT_INTERRUPTED
+    assert capsys.readouterr().err == f"{sweep.PROG}: interrupted\n"
+    resumed = []
+    monkeypatch.setattr(sweep, "connect", lambda *args: None)
+    monkeypatch.setattr(sweep, "run_tune", lambda s, d, resume: resumed.append(resume) or [])
+    assert cli.run(sweep.main, sweep.PROG, ["--resume", str(out)]) == 1  # no trial finished here
+    assert resumed == [True]
