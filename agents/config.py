@@ -6,7 +6,8 @@ Training-loop keys (:data:`LOOP_KEYS`) are split off (the evaluation schedule co
 file's ``evaluation`` section, which the Zoo does not read); the rest are keyword arguments of
 the SB3 algorithm, resolved as the Zoo does: ``"lin_<x>"`` for a schedule decaying linearly from
 ``x`` to 0, and ``policy_kwargs`` given as a Python expression over ``dict`` and ``nn``
-(``torch.nn``).
+(``torch.nn``). Every value is checked as :mod:`agents.hyperparameters` does, naming the file,
+the env and the parameter.
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ def load(env_id: str, algo: str) -> tuple[dict[str, Any], dict[str, Any]]:
         raise ValueError(f"env_id: {path.name} has no block for {env_id!r}")
     params = dict(blocks[env_id])
     loop = {k: params.pop(k) for k in LOOP_KEYS if k in params}
+    from .hyperparameters import check
+
+    check(algo, params, f"{path.name} ({env_id})")  # values SB3 accepts but cannot train with
     loop.update(blocks.get(EVALUATION, {}).get(env_id, {}))
     loop.setdefault("env_kwargs", {})
     return loop, resolve(params)
@@ -57,6 +61,8 @@ def resolve(params: dict[str, Any]) -> dict[str, Any]:
         value = out.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
             out[key] = linear_schedule(float(value[4:]))
+    if isinstance(out.get("train_freq"), list):  # YAML has no tuples: [1, episode], as the Zoo
+        out["train_freq"] = tuple(out["train_freq"])
     kwargs = policy_kwargs(out.get("policy_kwargs"))
     if isinstance(kwargs.get("activation_fn"), str):
         kwargs["activation_fn"] = getattr(torch.nn, kwargs["activation_fn"])

@@ -12,7 +12,9 @@ final angle error / spin or landing outcome), or with ``--json`` one JSON object
 A model (``.zip``) runs only on the env it was trained on: the env id and env settings come from
 the ``run.json`` that ``agents.train`` wrote next to it (``--env`` may be left out; a different
 one is refused). A model without ``run.json`` runs on ``--env`` only if its observation and
-action spaces fit. A mistake in the arguments exits with status 2 and one line on stderr.
+action spaces fit. A mistake in the arguments (``--episodes`` too many to fit in memory among
+them) exits with status 2 and one line on stderr; a fault of the file system while writing,
+with status 74 and one line naming the file.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rigid_env import cli
+from rigid_env import cli, resources
 from rigid_env.cli import UsageError
 from rigid_env.files import atomic_open, write_json
 
@@ -203,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(
         prog=PROG,
         description=__doc__.split("\n")[0],
-        epilog="exit status: 0 done, 2 a mistake in the arguments (nothing done), 130 interrupted",
+        epilog=cli.EXIT_STATUSES,
     )
     parser.add_argument(
         "--env", type=cli.env_id, help=f"default: the model's (run.json), else {DEFAULT_ENV}"
@@ -223,6 +225,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     env_id = args.env or trained_env(args.policy[0]) or DEFAULT_ENV
+    resources.check_envs(env_id, args.episodes, "--episodes")  # all episodes run at once
     if args.gif:
         if len(args.policy) > 1:
             raise cli.UsageError("--gif: give one --policy to film, not several")

@@ -17,12 +17,17 @@ settings, the status and every env's table. The training arguments are those of
 whose training finished keeps it, an interrupted one continues from its checkpoint, one not
 started starts, and every env whose table is missing is then evaluated. Ctrl-C during training
 saves a checkpoint and exits with status 130; a mistake in the arguments exits with status 2
-and one line on stderr, before any work.
+and one line on stderr, before any work. The folder belongs to one live process: another job on
+it is refused, naming that process; one whose ``main_job.json`` says ``running`` but whose
+process is gone stopped unexpectedly, and ``--resume`` takes it over. A fault of the file system
+ends the job with status 74 and one line naming the file, ``main_job.json`` marked ``failed``
+where it can still be written.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -30,11 +35,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from rigid_env import cli
+from rigid_env import cli, resources
 from rigid_env.cli import UsageError
 from rigid_env.files import write_json
 
-from . import run_folder
+from . import ownership, run_folder
 from .evaluate import (
     DEFAULT_EPISODES,
     DEFAULT_SEED,
@@ -75,7 +80,9 @@ def default_out() -> Path:
 
 def check_new(out: Path, overwrite: bool) -> None:
     """UsageError unless a new main job may be written to ``out``; changes nothing."""
-    if out.is_dir() and any(out.iterdir()):
+    if out.is_dir():
+        run_folder.refuse_if_in_use(out, "--out")
+    if out.is_dir() and run_folder.contents(out):
         if (out / run_folder.RUN_JSON).is_file():
             raise UsageError(
                 f"--out: {out} already holds a run of agents.train; expected a new or empty "
@@ -86,9 +93,14 @@ def check_new(out: Path, overwrite: bool) -> None:
                 f"--out: {out} is not empty and holds no {RECORD}; expected a new or empty folder"
             )
         if not overwrite:
+            try:
+                status = str(json.loads((out / RECORD).read_text())["status"])
+            except (OSError, ValueError, TypeError, KeyError):
+                status = "unreadable"
             raise UsageError(
-                f"--out: {out} already holds a run of the main job; pass --resume {out} to "
-                "continue it or --overwrite to replace it"
+                f"--out: {out} already holds a run of the main job "
+                f"({run_folder.state_of(out, status)}); pass --resume {out} to continue it or "
+                "--overwrite to replace it"
             )
         for env_id in JOBS:  # what --overwrite replaces must be the job's own runs
             run_folder.check_new(out / run_name(env_id), overwrite=True)
@@ -120,6 +132,7 @@ def check_arguments(args: argparse.Namespace) -> dict:
                 f"--resume continues OUT with the settings in its {RECORD}; drop {given}"
             )
         record = read_record(args.resume)
+        run_folder.refuse_if_in_use(Path(args.resume), "--resume")
         if record.get("status") == "finished":
             raise UsageError(f"--resume: {args.resume} is finished; expected an interrupted job")
         cli.writable_dir(args.resume, "--resume")
@@ -142,6 +155,7 @@ def check_arguments(args: argparse.Namespace) -> dict:
         "checkpoint_every": args.checkpoint_every,
     }
     for env_id in envs:
+        resources.check_envs(env_id, args.episodes, "--episodes")  # each evaluation at once
         make_plan(
             env_id,
             _algo(settings, env_id),
@@ -176,24 +190,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--eval-seed", type=cli.nonnegative_int, default=DEFAULT_SEED)
     args = parser.parse_args(argv)
     record = check_arguments(args)
+    if args.resume is None:
+        args.out = record["out"]  # the default one, if none was given: the same below
+    with ownership.owning(record["out"], "--resume" if args.resume else "--out") as claim:
+        record = check_arguments(args)  # again: no other process can start on it now
+        return _run_job(args, record, claim.owner.as_record())
 
+
+def _run_job(args: argparse.Namespace, record: dict, owner: dict) -> int:
     start = time.perf_counter()
     out = Path(record["out"])
     resuming = record["status"] != "new"
-    if not resuming:
-        out.mkdir(parents=True, exist_ok=True)
     print(f"main job folder: {out}  ({', '.join(record['envs'])})", flush=True)
-    record.update(status="running", episodes=args.episodes, eval_seed=args.eval_seed)
+    if record["status"] == "running":  # its owner is gone (or the claim would have failed)
+        dead = record.get("owner") or {}
+        print(
+            f"{out} stopped unexpectedly (main_job.json says running; its owner, pid "
+            f"{dead.get('pid', '?')} on {dead.get('host', '?')}, is gone): taking it over",
+            flush=True,
+        )
+    record.update(status="running", owner=owner, episodes=args.episodes, eval_seed=args.eval_seed)
     record.setdefault("results", {})
     _write_record(out, record)
     n = len(record["envs"])
-    for k, env_id in enumerate(record["envs"], 1):
-        code = _one_env(args, record, env_id, f"[{k}/{n}]", overwrite=not resuming)
-        if code:
-            record["status"] = "interrupted"
+    try:
+        for k, env_id in enumerate(record["envs"], 1):
+            code = _one_env(args, record, env_id, f"[{k}/{n}]", overwrite=not resuming)
+            if code:
+                record["status"] = "interrupted"
+                _write_record(out, record)
+                return code
             _write_record(out, record)
-            return code
-        _write_record(out, record)
+    except BaseException as error:  # recorded where it can still be written, then reported
+        record["status"] = "interrupted" if isinstance(error, KeyboardInterrupt) else "failed"
+        with contextlib.suppress(OSError):
+            _write_record(out, record)
+        raise
     wall = time.perf_counter() - start
     record.update(status="finished", wall_seconds=round(wall, 1))
     _write_record(out, record)

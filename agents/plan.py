@@ -14,9 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from rigid_env import resources
 from rigid_env.cli import UsageError
 
-from . import config
+from . import config, hyperparameters
 from .rollout import make_vec
 
 DEFAULT_ENV = "RigidEnv/Reorient-v0"
@@ -112,6 +113,7 @@ def make_plan(
         raise UsageError(str(error)) from None
     overrides = dict(overrides or {})
     loop_overrides, kwarg_overrides = split_overrides(algo, overrides)
+    hyperparameters.check(algo, kwarg_overrides, "overrides (--set)")
     loop.update(loop_overrides)
     try:
         kwargs.update(config.resolve(kwarg_overrides))
@@ -137,6 +139,8 @@ def make_plan(
         loop=loop,
         kwargs=kwargs,
     )
+    hyperparameters.check_combination(algo, plan.kwargs, plan.n_envs, "settings")
+    check_memory(plan)
     if "env_kwargs" in loop_overrides:  # the user's: try them on a one-env instance
         try:
             make_vec(env_id, 1, **plan.env_kwargs).close()
@@ -145,8 +149,30 @@ def make_plan(
     return plan
 
 
+def check_memory(plan: Plan, kwargs: dict | None = None) -> None:
+    """UsageError when the run's training env, evaluation env, SB3 buffer and networks cannot
+    fit in this machine's memory (``kwargs``: the algorithm's, default the plan's)."""
+    kwargs = plan.kwargs if kwargs is None else kwargs
+    envs = resources.env_bytes(plan.env_id, plan.n_envs)
+    evaluation = resources.env_bytes(plan.env_id, plan.eval_episodes)
+    parts = {"training envs": envs, "evaluation envs": evaluation}
+    spaces = resources.ENV_SPACES.get(plan.env_id)
+    if spaces is not None:
+        parts.update(
+            hyperparameters.memory_bytes(plan.algo, kwargs, plan.n_envs, plan.timesteps, spaces)
+        )
+    sizes = ", ".join(f"{k} {resources.size_text(v)}" for k, v in parts.items())
+    resources.check_fits(
+        sum(parts.values()),
+        f"training {plan.env_id} with n_envs {plan.n_envs} and eval_episodes "
+        f"{plan.eval_episodes} ({sizes})",
+    )
+
+
 def plan_of_record(record: dict) -> Plan:
     """The plan stored in a run's ``run.json`` (checked again)."""
+    import gymnasium as gym
+
     try:
         plan = Plan(
             env_id=record["env_id"],
@@ -163,8 +189,17 @@ def plan_of_record(record: dict) -> Plan:
             loop=dict(record["loop"]),
             kwargs={},  # the checkpoint holds the algorithm's own settings
         )
-    except (KeyError, TypeError, UsageError) as error:
+    except (KeyError, TypeError, ValueError) as error:
         raise UsageError(f"run.json: missing or bad setting ({error}); cannot resume") from None
     if plan.algo not in config.ALGOS:
         raise UsageError(f"run.json: algo must be one of {config.ALGOS}, got {plan.algo!r}")
+    if not isinstance(plan.env_id, str) or plan.env_id not in gym.registry:
+        raise UsageError(f"run.json: unknown env id {plan.env_id!r}; cannot resume")
+    check_memory(plan, {})  # the buffers are the checkpoint's, sized as it was trained
+    try:
+        make_vec(plan.env_id, 1, **plan.env_kwargs).close()
+    except (TypeError, ValueError) as error:
+        raise UsageError(
+            f"run.json: env_kwargs: {plan.env_id} rejects {plan.env_kwargs}: {error}"
+        ) from None
     return plan

@@ -4,19 +4,27 @@ A run folder holds ``run.json`` from the first moment of training (status ``runn
 ``finished``, ``interrupted`` or ``failed``), so any folder that holds files but no ``run.json``
 is not a run and is never written into. An existing run is replaced only with ``overwrite``
 (and then only the files a run writes are removed) or continued with ``agents.train --resume``.
+
+A run belongs to the one live process that trains it (:mod:`agents.ownership`): a run in use is
+neither replaced nor resumed, and one whose ``run.json`` says ``running`` with no live owner
+stopped unexpectedly (a SIGKILL, a lost machine) and may be resumed.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import pickle
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rigid_env.cli import UsageError, writable_dir
 from rigid_env.files import remove_partials, write_json
+
+from . import ownership
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
@@ -37,7 +45,30 @@ RUN_FILES = (
     "clip.gif",
     "main_job.json",
 )
+STATUSES = ("running", "finished", "interrupted", "failed")
 RESUMABLE = ("running", "interrupted", "failed")
+STOPPED = "stopped unexpectedly"  # how a running record without a live owner is reported
+
+
+def contents(folder: Path) -> list[Path]:
+    """What ``folder`` holds besides its owner's lock file."""
+    return [p for p in folder.iterdir() if p.name != ownership.LOCK_FILE]
+
+
+def refuse_if_in_use(folder: Path, name: str) -> None:
+    """UsageError naming the owner when another live process works in ``folder``."""
+    owner = ownership.owner_of(folder)
+    if owner is not None:
+        raise UsageError(
+            f"{name}: {folder} is in use by {owner.describe()}; wait for it to end or stop it first"
+        )
+
+
+def state_of(folder: Path, status: str) -> str:
+    """``status`` as it stands: a ``running`` one with no live owner stopped unexpectedly."""
+    if status == "running" and ownership.owner_of(folder) is None:
+        return STOPPED
+    return status
 
 
 def check_new(out: Path, overwrite: bool) -> None:
@@ -49,15 +80,20 @@ def check_new(out: Path, overwrite: bool) -> None:
         if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
             raise UsageError(f"--out: cannot create {out} in {parent}; expected a writable place")
         return
-    if not any(out.iterdir()):
+    refuse_if_in_use(out, "--out")
+    if not contents(out):
         return
     if not (out / RUN_JSON).is_file():
         raise UsageError(
             f"--out: {out} is not empty and holds no {RUN_JSON}; expected a new or empty folder"
         )
     if not overwrite:
+        try:
+            status = state_of(out, str(json.loads((out / RUN_JSON).read_text())["status"]))
+        except (OSError, ValueError, TypeError, KeyError):
+            status = "unreadable"
         raise UsageError(
-            f"--out: {out} already holds a run; pass --resume {out} to continue it "
+            f"--out: {out} already holds a run ({status}); pass --resume {out} to continue it "
             "or --overwrite to replace it"
         )
 
@@ -89,10 +125,18 @@ def read(run_dir: str | Path) -> dict:
 
 
 def read_resumable(run_dir: str | Path) -> dict:
-    """``run.json`` of a run that can be continued: not finished, with a checkpoint."""
+    """``run.json`` of a run that can be continued: not finished, not in use by another live
+    process, with a checkpoint, and every entry a resume reads of the kind it should be."""
+    from .plan import plan_of_record
+
     run_dir = Path(run_dir)
     record = read(run_dir)
+    refuse_if_in_use(run_dir, "--resume")
     status = record.get("status", "finished")  # runs from before checkpoints were all finished
+    if status not in STATUSES:
+        raise UsageError(
+            f"--resume: {run_dir / RUN_JSON}: status must be one of {STATUSES}, got {status!r}"
+        )
     if status not in RESUMABLE:
         raise UsageError(
             f"--resume: {run_dir} is {status} ({record.get('steps_done', '?')} steps); "
@@ -103,9 +147,68 @@ def read_resumable(run_dir: str | Path) -> dict:
             f"--resume: {run_dir} has no {CHECKPOINT} (stopped before its first checkpoint); "
             "start it again with --overwrite"
         )
+    check_record(record, run_dir / RUN_JSON)
+    plan_of_record(record)
     writable_dir(run_dir, "--resume")
     remove_partials(run_dir)
     return record
+
+
+def _number(value: Any) -> bool:
+    return (
+        isinstance(value, numbers.Real)
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def check_record(record: dict, path: Path) -> None:
+    """UsageError naming the first entry of ``record`` that a resume cannot use (a hand-edited
+    or damaged ``run.json``); the settings themselves are checked by ``plan_of_record``."""
+
+    def bad(key: str, expected: str) -> UsageError:
+        return UsageError(
+            f"--resume: {path}: {key} must be {expected}, got {record.get(key)!r}; "
+            "expected the JSON agents.train writes"
+        )
+
+    for key in ("env_kwargs", "loop", "overrides"):
+        if not isinstance(record.get(key, {}), dict):
+            raise bad(key, "a mapping")
+    rows = record.get("evaluations", [])
+    metrics = ("mean_return", "std_return", "success_rate")
+    if not isinstance(rows, list) or not all(
+        isinstance(r, dict)
+        and _count(r.get("env_steps"))
+        and all(_number(r.get(m)) for m in metrics)
+        and set(r) == set(rows[0])
+        for r in rows
+    ):
+        raise bad("evaluations", f"a list of rows with env_steps and {', '.join(metrics)}")
+    best = record.get("best_mean_return")
+    if best is not None and not _number(best):
+        raise bad("best_mean_return", "null or a finite number")
+    resumed = record.get("resumed_at", [])
+    if not isinstance(resumed, list) or not all(_count(s) for s in resumed):
+        raise bad("resumed_at", "a list of step counts")
+    checkpoint = record.get("checkpoint")
+    if checkpoint is not None and not (
+        isinstance(checkpoint, dict)
+        and _count(checkpoint.get("steps"))
+        and _count(checkpoint.get("monitor_bytes"))
+    ):
+        raise bad("checkpoint", "null or {steps: N, monitor_bytes: N}")
+    analytic = record.get("analytic")
+    if analytic is not None and not (
+        isinstance(analytic, dict) and all(_number(analytic.get(m)) for m in metrics)
+    ):
+        raise bad("analytic", f"null or a summary with {', '.join(metrics)}")
+    if not _count(record.get("steps_done", 0)):
+        raise bad("steps_done", "a step count")
 
 
 def write(run_dir: Path, record: dict) -> None:

@@ -26,8 +26,15 @@ Without ``--address`` (or ``RAY_ADDRESS``) a local Ray instance runs the trials;
 sweep joins a running cluster (``ray start --head`` on one machine, ``ray start --address ...`` on
 the others, then ``--address auto`` on the head). On a cluster ``--out`` must be a folder every
 node sees (a shared file system), as Ray Tune requires of its storage. Ray retries a trial whose
-worker or node died (``--max-failures``); an interrupted sweep (Ctrl-C) resumes with
-``--resume DIR``, which re-runs only the unfinished trials.
+worker or node died (``--max-failures``); an interrupted sweep (Ctrl-C or SIGTERM: the trials
+are stopped, Tune's state saved, exit status 130) resumes with ``--resume DIR``, which re-runs
+only the unfinished trials. The sweep folder belongs to the one live sweep that runs it: another
+``--out`` or ``--resume`` on it is refused, naming that process.
+
+Every setting, and every value a ``--set`` or ``--search`` gives a trial, is checked before Ray
+starts (as ``agents.train`` checks its own); a mistake exits with status 2 and one line on
+stderr; a fault of the file system in the driver, with status 74 and one line naming the file;
+a sweep some of whose trials failed, with status 1.
 """
 
 from __future__ import annotations
@@ -35,10 +42,13 @@ from __future__ import annotations
 import argparse
 import hashlib
 import inspect
+import itertools
 import json
+import math
 import os
 import re
 import shutil
+import signal
 import socket
 import sys
 import time
@@ -48,7 +58,12 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from . import config
+from rigid_env import cli
+from rigid_env.cli import UsageError
+from rigid_env.files import write_json as write_json_atomically
+
+from . import config, hyperparameters, ownership, run_folder
+from .plan import MAX_SEED, Plan, make_plan
 
 if TYPE_CHECKING:
     from ray.tune import ResultGrid
@@ -71,7 +86,11 @@ _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 def parse_value(text: str) -> Any:
     """A YAML value, with ``1e-4`` read as a number (YAML 1.1 would keep it a string)."""
-    return _numbers(yaml.safe_load(text))
+    try:
+        return _numbers(yaml.safe_load(text))
+    except yaml.YAMLError as error:
+        problem = getattr(error, "problem", None) or "invalid YAML"
+        raise UsageError(f"{problem} in {text!r}") from None
 
 
 def _numbers(value: Any) -> Any:
@@ -88,29 +107,31 @@ def parse_space(text: str) -> tuple[str, list]:
     """``"loguniform(1e-4, 1e-3)"`` → ``("loguniform", [0.0001, 0.001])``."""
     match = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", text, re.S)
     if not match or match.group(1) not in SPACES:
-        raise ValueError(
+        raise UsageError(
             f"--search: {text!r} is not one of uniform(a, b), loguniform(a, b), int(a, b), "
             "choice(v1, ...), grid(v1, ...)"
         )
     kind = match.group(1)
     try:
         values = parse_value(f"[{match.group(2)}]")
-    except yaml.YAMLError as error:
-        raise ValueError(f"--search: cannot read the values of {text!r}: {error}") from None
+    except UsageError as error:
+        raise UsageError(f"--search: cannot read the values of {text!r}: {error}") from None
     if kind in ("choice", "grid"):
         if not values:
-            raise ValueError(f"--search: {text!r} needs at least one value")
+            raise UsageError(f"--search: {text!r} needs at least one value")
         return kind, values
-    if len(values) != 2 or not all(isinstance(v, (int, float)) for v in values):
-        raise ValueError(f"--search: {kind} takes two numbers, got {text!r}")
+    if len(values) != 2 or not all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values
+    ):
+        raise UsageError(f"--search: {kind} takes two finite numbers, got {text!r}")
     low, high = values
     if not low < high:
-        raise ValueError(f"--search: {text!r} needs a < b")
+        raise UsageError(f"--search: {text!r} needs a < b")
     if kind == "loguniform" and low <= 0:
-        raise ValueError(f"--search: {text!r} needs a > 0")
+        raise UsageError(f"--search: {text!r} needs a > 0")
     if kind == "int":
         if low != int(low) or high != int(high):
-            raise ValueError(f"--search: int(a, b) takes integers, got {text!r}")
+            raise UsageError(f"--search: int(a, b) takes integers, got {text!r}")
         return kind, [int(low), int(high)]
     return kind, [float(low), float(high)]
 
@@ -120,7 +141,7 @@ def parse_assignments(items: list[str], option: str) -> dict[str, str]:
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise ValueError(f"{option}: expected KEY=VALUE, got {item!r}")
+            raise UsageError(f"{option}: expected KEY=VALUE, got {item!r}")
         out[key.strip()] = value
     return out
 
@@ -144,9 +165,9 @@ def check_keys(keys: Iterable[str], env_id: str, algo: str, option: str) -> None
         head, dot, _ = key.partition(".")
         if head not in allowed:
             hint = " (use --seeds)" if head == "seed" else ""
-            raise ValueError(f"{option}: {head!r} is not a setting of {algo.upper()}{hint}")
+            raise UsageError(f"{option}: {head!r} is not a setting of {algo.upper()}{hint}")
         if dot and not isinstance(block.get(head, {}), dict):
-            raise ValueError(f"{option}: {head!r} is not a dict, so {key!r} cannot name an entry")
+            raise UsageError(f"{option}: {head!r} is not a dict, so {key!r} cannot name an entry")
 
 
 def raw_block(env_id: str, algo: str) -> dict:
@@ -181,42 +202,45 @@ def config_key(params: dict) -> str:
     return "c-" + hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
+MAX_TRIALS = 10_000  # (configs x seeds) of one sweep: Tune keeps every trial in memory and state
+MAX_CHECKED = 256  # combinations of searched values checked together; beyond, one key at a time
+# sweep.json: each setting and the JSON types it may have.
+SETTINGS_TYPES: dict[str, tuple[type, ...]] = {
+    "env_id": (str,),
+    "algo": (str,),
+    "seeds": (list,),
+    "set": (dict,),
+    "search": (dict,),
+    "samples": (int,),
+    "configs": (int,),
+    "metric": (str,),
+    "cpus_per_trial": (int, float),
+    "max_failures": (int,),
+}
+
+
 def make_settings(args: argparse.Namespace) -> dict:
-    """Validated sweep settings (what ``sweep.json`` holds)."""
-    if args.algo not in config.ALGOS:
-        raise ValueError(f"--algo must be one of {config.ALGOS}, got {args.algo!r}")
-    if args.seeds < 1:
-        raise ValueError(f"--seeds must be at least 1, got {args.seeds}")
-    if args.cpus_per_trial <= 0:
-        raise ValueError(f"--cpus-per-trial must be positive, got {args.cpus_per_trial}")
-    if args.max_failures < 0:
-        raise ValueError(f"--max-failures must be at least 0, got {args.max_failures}")
-    try:
-        config.load(args.env, args.algo)
-    except ValueError as error:
-        raise ValueError(f"--env: {error}") from None
-    sets = {k: parse_value(v) for k, v in parse_assignments(args.set, "--set").items()}
+    """Validated sweep settings (what ``sweep.json`` holds): :func:`check_settings` of the
+    arguments (the values themselves: :func:`check_values`)."""
+    if args.seeds > MAX_TRIALS:
+        raise UsageError(f"--seeds {args.seeds}: at most {MAX_TRIALS} trials per sweep")
+    sets = {}
+    for key, text in parse_assignments(args.set, "--set").items():
+        try:
+            sets[key] = parse_value(text)
+        except ValueError as error:
+            raise UsageError(f"--set {key}: {error}") from None
     search = parse_assignments(args.search, "--search")
-    spaces = {k: parse_space(v) for k, v in search.items()}
-    check_keys(sets, args.env, args.algo, "--set")
-    check_keys(spaces, args.env, args.algo, "--search")
-    both = set(sets) & set(spaces)
-    if both:
-        raise ValueError(f"--set and --search both give {sorted(both)}")
-    kinds = {kind for kind, _ in spaces.values()}
-    sampled = bool(kinds & set(SAMPLED))
-    if sampled and "grid" in kinds:
-        raise ValueError("--search: grid(...) cannot be mixed with sampled spaces")
+    sampled = any(parse_space(text)[0] in SAMPLED for text in search.values())
     if args.samples is not None and not sampled:
-        raise ValueError("--samples: only for sampled --search spaces (uniform, choice, ...)")
-    if args.samples is not None and args.samples < 1:
-        raise ValueError(f"--samples must be at least 1, got {args.samples}")
+        raise UsageError("--samples: only for sampled --search spaces (uniform, choice, ...)")
     samples = (args.samples or 10) if sampled else 1
     grid_configs = 1
-    for kind, values in spaces.values():
+    for text in search.values():
+        kind, values = parse_space(text)
         if kind == "grid":
             grid_configs *= len(values)
-    return {
+    settings = {
         "env_id": args.env,
         "algo": args.algo,
         "seeds": list(range(args.seeds)),
@@ -228,6 +252,142 @@ def make_settings(args: argparse.Namespace) -> dict:
         "cpus_per_trial": args.cpus_per_trial,
         "max_failures": args.max_failures,
     }
+    return check_settings(settings)
+
+
+def check_settings(settings: Any, where: str = "") -> dict:
+    """``settings`` (as made from the arguments, or read back from ``sweep.json``) checked in
+    full: :class:`UsageError` prefixed with ``where`` for the first one that is wrong."""
+
+    def bad(message: str) -> UsageError:
+        return UsageError(f"{where}{message}")
+
+    if not isinstance(settings, dict):
+        raise bad(f"expected a JSON object of settings, got {type(settings).__name__}")
+    for key, types in SETTINGS_TYPES.items():
+        value = settings.get(key)
+        if not isinstance(value, types) or isinstance(value, bool):
+            names = " or ".join(t.__name__ for t in types)
+            raise bad(f"{key} must be of type {names}, got {value!r}")
+    env_id, algo = settings["env_id"], settings["algo"]
+    if algo not in config.ALGOS:
+        raise bad(f"--algo must be one of {config.ALGOS}, got {algo!r}")
+    try:
+        config.load(env_id, algo)
+    except ValueError as error:
+        raise bad(f"--env: {error}") from None
+    seeds = settings["seeds"]
+    if not (
+        1 <= len(seeds) <= MAX_TRIALS
+        and all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= MAX_SEED for s in seeds
+        )
+        and len(set(seeds)) == len(seeds)
+    ):
+        raise bad(f"seeds must be 1 to {MAX_TRIALS} distinct integers in [0, {MAX_SEED}]")
+    sets, search = settings["set"], settings["search"]
+    if not all(isinstance(text, str) for text in search.values()):
+        raise bad("search must map each key to its space's text, e.g. 'grid(1, 2)'")
+    try:
+        spaces = {k: parse_space(v) for k, v in search.items()}
+        check_keys(sets, env_id, algo, "--set")
+        check_keys(spaces, env_id, algo, "--search")
+    except UsageError as error:
+        raise bad(str(error)) from None
+    both = set(sets) & set(spaces)
+    if both:
+        raise bad(f"--set and --search both give {sorted(both)}")
+    kinds = {kind for kind, _ in spaces.values()}
+    sampled = bool(kinds & set(SAMPLED))
+    if sampled and "grid" in kinds:
+        raise bad("--search: grid(...) cannot be mixed with sampled spaces")
+    samples = settings["samples"]
+    if not 1 <= samples <= MAX_TRIALS or (not sampled and samples != 1):
+        raise bad(f"--samples must be 1 to {MAX_TRIALS} (1 without sampled spaces), got {samples}")
+    configs = samples
+    if not sampled:
+        configs = math.prod(len(values) for _, values in spaces.values())
+    if settings["configs"] != configs:
+        raise bad(
+            f"configs must be {configs} for these spaces and samples, got {settings['configs']}"
+        )
+    if configs * len(seeds) > MAX_TRIALS:
+        raise bad(
+            f"{configs} config(s) x {len(seeds)} seeds = {configs * len(seeds)} trials; "
+            f"at most {MAX_TRIALS} per sweep"
+        )
+    if settings["metric"] not in METRICS:
+        raise bad(f"--metric must be one of {METRICS}, got {settings['metric']!r}")
+    cpus = settings["cpus_per_trial"]
+    if not (math.isfinite(cpus) and cpus > 0):
+        raise bad(f"--cpus-per-trial must be a finite number > 0, got {cpus!r}")
+    if settings["max_failures"] < 0:
+        raise bad(f"--max-failures must be an integer >= 0, got {settings['max_failures']}")
+    return settings
+
+
+def _candidates(kind: str, values: list) -> list:
+    """The values of a space that stand for all of it: every one of a grid or a choice, the
+    ends of a range (the checks are ranges and bounds, so the ends decide)."""
+    return list(values) if kind in ("grid", "choice") else [values[0], values[1]]
+
+
+def _plain(message: str) -> str:
+    return message.removeprefix("overrides (--set): ")
+
+
+def check_values(settings: dict, build: bool = True) -> None:
+    """Every ``--set`` value and every value a ``--search`` space can take, checked against the
+    algorithm as ``agents.train`` checks them (:func:`agents.plan.make_plan`: ranges, memory),
+    before any trial starts; with ``build``, SB3 builds the first config's model once (and
+    once per value of a searched key that no check of ours covers)."""
+    from .train import check_model
+
+    env_id, algo, sets = settings["env_id"], settings["algo"], settings["set"]
+    block = raw_block(env_id, algo)
+    spaces = {k: parse_space(v) for k, v in settings["search"].items()}
+    options = {k: _candidates(kind, values) for k, (kind, values) in spaces.items()}
+
+    def plan(params: dict) -> Plan:
+        overrides = expand({**sets, **params}, block)
+        try:
+            return make_plan(env_id, algo, overrides=overrides)
+        except UsageError as error:
+            if params:
+                try:
+                    make_plan(env_id, algo, overrides=expand(sets, block))
+                except UsageError:
+                    pass  # the --set values alone are wrong: say so below
+                else:
+                    given = ", ".join(f"{k}={v!r}" for k, v in params.items())
+                    raise UsageError(f"--search ({given}): {_plain(str(error))}") from None
+            raise UsageError(f"--set: {_plain(str(error))}") from None
+
+    first = {k: values[0] for k, values in options.items()}
+    if math.prod(len(values) for values in options.values()) <= MAX_CHECKED:
+        combos = [dict(zip(options, c, strict=True)) for c in itertools.product(*options.values())]
+    else:  # each key's values, the others at their first
+        combos = [{**first, k: v} for k, values in options.items() for v in values]
+    plans = [plan(params) for params in combos] or [plan({})]
+    if not build:
+        return
+    rules = hyperparameters.RULES[algo]
+    policy_rules = hyperparameters.policy_rules(algo)
+    uncovered = [
+        k
+        for k in options
+        if not (
+            k in rules or k in config.LOOP_KEYS or k.removeprefix("policy_kwargs.") in policy_rules
+        )
+    ]
+    builds = [first] + [{**first, k: v} for k in uncovered for v in options[k][1:]]
+    for params in builds:
+        try:
+            check_model(plan(params) if params != first else plans[0])
+        except UsageError as error:
+            given = ", ".join(f"{k}={v!r}" for k, v in params.items())
+            where_ = f"--search ({given})" if params else "--set"
+            raise UsageError(f"{where_}: {_plain(str(error))}") from None
 
 
 def _encode(value: Any) -> Any:
@@ -277,13 +437,7 @@ def _strict(obj: Any) -> Any:
 
 def write_json(path: Path, obj: Any) -> None:
     """Write JSON atomically: a reader sees the old file or the new one, never half of one."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w") as f:
-        json.dump(_strict(obj), f, indent=2, default=repr, allow_nan=False)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    write_json_atomically(path, _strict(obj), indent=2, default=repr, allow_nan=False)
 
 
 def run_dir(sweep_dir: str | Path, key: str, seed: int) -> Path:
@@ -324,6 +478,7 @@ def run_trial(trial_config: dict, settings: dict) -> None:
     log_path = attempts_path(settings["sweep_dir"], key, seed)
     log_path.parent.mkdir(parents=True, exist_ok=True)
     if out.exists():  # left by an attempt that died: this one starts the run afresh
+        run_folder.refuse_if_in_use(out, "trial")  # unless that attempt still runs somewhere
         shutil.rmtree(out)
     node_id = ray.get_runtime_context().get_node_id()
     started = {
@@ -367,7 +522,9 @@ def run_trial(trial_config: dict, settings: dict) -> None:
 # ---------------------------------------------------------------- the sweep (driver)
 
 
-def connect(address: str | None, num_cpus: int | None) -> None:
+def connect(address: str | None, num_cpus: int | None, cpus_per_trial: float) -> None:
+    """Start a local Ray instance or join the cluster at ``address``; UsageError when no node
+    of it has the CPUs of one trial (the trials would wait forever)."""
     import ray
 
     if address:
@@ -377,10 +534,35 @@ def connect(address: str | None, num_cpus: int | None) -> None:
         ray.init(num_cpus=num_cpus, include_dashboard=False, object_store_memory=LOCAL_OBJECT_STORE)
     cpus = ray.cluster_resources().get("CPU", 0)
     print(f"Ray: {len(ray.nodes())} node(s), {cpus:g} CPUs", flush=True)
+    largest = max((n["Resources"].get("CPU", 0) for n in ray.nodes() if n["Alive"]), default=0)
+    if largest < cpus_per_trial:
+        raise UsageError(
+            f"--cpus-per-trial {cpus_per_trial:g}: no node of the Ray cluster has that many CPUs "
+            f"(the largest has {largest:g}); no trial could start"
+        )
+
+
+def local_cpus() -> int:
+    """The CPUs a local Ray instance gets by default (Ray counts the machine's)."""
+    return os.cpu_count() or 1
+
+
+def check_cpus(cpus_per_trial: float, address: str | None, num_cpus: int | None) -> None:
+    """Before Ray starts: a trial must fit in a local instance (on a cluster: in ``connect``)."""
+    if address:
+        return
+    have = num_cpus if num_cpus is not None else local_cpus()
+    if cpus_per_trial > have:
+        given = "--num-cpus" if num_cpus is not None else "this machine's"
+        raise UsageError(
+            f"--cpus-per-trial {cpus_per_trial:g}: more than the {have} CPUs of the local Ray "
+            f"instance ({given}); no trial could start"
+        )
 
 
 def run_tune(settings: dict[str, Any], sweep_dir: Path, resume: bool) -> ResultGrid:
-    """Run (or resume) the trials; returns Tune's ResultGrid."""
+    """Run (or resume) the trials; returns Tune's ResultGrid. A sweep stopped before Tune
+    saved its first state starts its trials afresh."""
     from ray import tune
     from ray.tune.search import Repeater
     from ray.tune.search.optuna import OptunaSearch
@@ -395,7 +577,7 @@ def run_tune(settings: dict[str, Any], sweep_dir: Path, resume: bool) -> ResultG
         {"cpu": settings["cpus_per_trial"]},
     )
     experiment = sweep_dir / EXPERIMENT
-    if resume:
+    if resume and tune.Tuner.can_restore(str(experiment)):
         tuner = tune.Tuner.restore(
             str(experiment), trainable, resume_unfinished=True, restart_errored=True
         )
@@ -529,28 +711,31 @@ def default_out(env_id: str, algo: str) -> Path:
     return Path("runs") / f"sweep-{name}-{algo}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m agents.sweep",
+PROG = "python -m agents.sweep"
+
+
+def build_parser() -> cli.Parser:
+    parser = cli.Parser(
+        prog=PROG,
         description=__doc__.split("\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="\n".join(__doc__.split("\n")[1:]),
     )
-    parser.add_argument("--env", default=None, help="default RigidEnv/Reorient-v0")
-    parser.add_argument("--algo", default=None, help=f"one of {config.ALGOS} (default ppo)")
-    parser.add_argument("--seeds", type=int, default=None, help="seeds 0..K-1 (default 5)")
+    parser.add_argument("--env", type=cli.env_id, help="default RigidEnv/Reorient-v0")
+    parser.add_argument("--algo", choices=config.ALGOS, help="default ppo")
+    parser.add_argument("--seeds", type=cli.positive_int, help="seeds 0..K-1 (default 5)")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=YAML")
     parser.add_argument("--search", nargs="*", default=[], metavar="KEY=SPACE")
-    parser.add_argument("--samples", type=int, default=None, help="sampled configs (default 10)")
+    parser.add_argument("--samples", type=cli.positive_int, help="sampled configs (default 10)")
+    parser.add_argument("--metric", choices=METRICS, help="what Optuna maximises (mean_return)")
+    parser.add_argument("--address", help="a Ray cluster to join (or RAY_ADDRESS)")
     parser.add_argument(
-        "--metric", choices=METRICS, default=None, help="what Optuna maximises (mean_return)"
+        "--num-cpus", type=cli.positive_int, help="CPUs of a local Ray instance (default: all)"
     )
-    parser.add_argument("--address", default=None, help="a Ray cluster to join (or RAY_ADDRESS)")
-    parser.add_argument("--num-cpus", type=int, default=None, help="CPUs of a local Ray instance")
-    parser.add_argument("--cpus-per-trial", type=float, default=None, help="default 1")
-    parser.add_argument("--max-failures", type=int, default=None, help="retries (default 3)")
-    parser.add_argument("--out", default=None, help="sweep folder (default: a fresh one in runs/)")
-    parser.add_argument("--resume", default=None, metavar="DIR", help="resume the sweep in DIR")
+    parser.add_argument("--cpus-per-trial", type=cli.positive_float, help="default 1")
+    parser.add_argument("--max-failures", type=cli.nonnegative_int, help="retries (default 3)")
+    parser.add_argument("--out", help="sweep folder (default: a fresh one in runs/)")
+    parser.add_argument("--resume", metavar="DIR", help="resume the sweep in DIR")
     return parser
 
 
@@ -574,50 +759,146 @@ DEFAULTS = {
 }
 
 
+def read_settings(sweep_dir: Path) -> dict:
+    """The checked settings of the sweep in ``sweep_dir`` (UsageError naming ``sweep.json``)."""
+    path = sweep_dir / SETTINGS_FILE
+    if not path.is_file():
+        raise UsageError(f"--resume: {sweep_dir} holds no sweep ({SETTINGS_FILE})")
+    try:
+        settings = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise UsageError(
+            f"--resume: {path} is unreadable ({error}); expected the {SETTINGS_FILE} "
+            "agents.sweep writes"
+        ) from None
+    return check_settings(settings, f"--resume: {path}: ")
+
+
+def check_new_sweep(sweep_dir: Path) -> None:
+    """UsageError unless a new sweep may be written to ``sweep_dir``; changes nothing."""
+    if sweep_dir.exists() and not sweep_dir.is_dir():
+        raise UsageError(f"--out: {sweep_dir} is a file; expected a new folder")
+    if sweep_dir.is_dir():
+        run_folder.refuse_if_in_use(sweep_dir, "--out")
+        if (sweep_dir / SETTINGS_FILE).exists():
+            raise UsageError(f"--out: {sweep_dir} already holds a sweep; use --resume {sweep_dir}")
+        if (sweep_dir / run_folder.RUN_JSON).exists():
+            raise UsageError(
+                f"--out: {sweep_dir} holds a run of agents.train; expected a new folder"
+            )
+
+
+class StopTune:
+    """While active, the first SIGINT (Ctrl-C) or SIGTERM asks Ray Tune to stop as its own
+    Ctrl-C handling does (its SIGUSR1 handler: the trials are stopped and the experiment state
+    saved, so the sweep resumes), and ``requested`` is set; before Tune runs, or at a second
+    signal, ``KeyboardInterrupt`` is raised (exit status 130; the sweep resumes from the state
+    Tune saved last)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: dict[int, Any] = {}
+        self._environ: str | None = None
+
+    def __enter__(self) -> StopTune:
+        self._environ = os.environ.get("TUNE_DISABLE_SIGINT_HANDLER")
+        os.environ["TUNE_DISABLE_SIGINT_HANDLER"] = "1"  # SIGINT is handled here, not by Tune
+        for sig in self.SIGNALS:
+            self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        if self._environ is None:
+            os.environ.pop("TUNE_DISABLE_SIGINT_HANDLER", None)
+        else:
+            os.environ["TUNE_DISABLE_SIGINT_HANDLER"] = self._environ
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        tune_listens = callable(signal.getsignal(signal.SIGUSR1))  # Tune's, during fit()
+        if self.requested or not tune_listens:
+            raise KeyboardInterrupt
+        self.requested = True
+        os.write(
+            2,
+            f"\n{signal.Signals(signum).name}: stopping the trials and saving the sweep's state "
+            "(Ctrl-C again to quit at once)\n".encode(),
+        )
+        os.kill(os.getpid(), signal.SIGUSR1)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     address = args.address or os.environ.get("RAY_ADDRESS") or None
     if address and args.num_cpus is not None:
-        parser.error("--num-cpus: only for a local Ray instance (the cluster has its own)")
-    if args.resume:
+        raise UsageError("--num-cpus: only for a local Ray instance (the cluster has its own)")
+    resuming = args.resume is not None
+    if resuming:
         given = [o for o in SWEEP_OPTIONS if getattr(args, o) is not None]
-        if given or args.set or args.search:
-            parser.error(
+        given += ["set"] * bool(args.set) + ["search"] * bool(args.search)
+        if given:
+            raise UsageError(
                 "--resume: the settings come from DIR/sweep.json; only --address and "
-                f"--num-cpus may be given (got {given + ['set'] * bool(args.set) + ['search'] * bool(args.search)})"
+                f"--num-cpus may be given (got {given})"
             )
         sweep_dir = Path(args.resume).resolve()
-        if not (sweep_dir / SETTINGS_FILE).is_file() or not (sweep_dir / EXPERIMENT).is_dir():
-            parser.error(f"--resume: {sweep_dir} holds no sweep ({SETTINGS_FILE}, {EXPERIMENT}/)")
-        settings = json.loads((sweep_dir / SETTINGS_FILE).read_text())
+        if sweep_dir.is_dir():
+            run_folder.refuse_if_in_use(sweep_dir, "--resume")
+        settings = read_settings(sweep_dir)
     else:
         for name, value in DEFAULTS.items():
             if getattr(args, name) is None:
                 setattr(args, name, value)
-        try:
-            settings = make_settings(args)
-        except ValueError as error:
-            parser.error(str(error))
+        settings = make_settings(args)
         sweep_dir = Path(args.out or default_out(args.env, args.algo)).resolve()
-        if (sweep_dir / SETTINGS_FILE).exists():
-            parser.error(f"--out: {sweep_dir} already holds a sweep; use --resume {sweep_dir}")
-        sweep_dir.mkdir(parents=True, exist_ok=True)
-        write_json(sweep_dir / SETTINGS_FILE, settings)
+        check_new_sweep(sweep_dir)
+    check_cpus(settings["cpus_per_trial"], address, args.num_cpus)
+    try:  # every value a trial will train with, before Ray starts
+        check_values(settings)
+    except UsageError as error:
+        if not resuming:
+            raise
+        raise UsageError(f"--resume: {sweep_dir / SETTINGS_FILE}: {error}") from None
+    option = "--resume" if resuming else "--out"
+    with ownership.owning(sweep_dir, option):
+        if resuming:
+            settings = read_settings(sweep_dir)  # as it stands now that it is ours
+        else:
+            check_new_sweep(sweep_dir)
+            cli.writable_dir(sweep_dir, "--out")
+            write_json(sweep_dir / SETTINGS_FILE, settings)
+        return _run(settings, sweep_dir, resuming, address, args.num_cpus)
 
+
+def _run(
+    settings: dict, sweep_dir: Path, resuming: bool, address: str | None, num_cpus: int | None
+) -> int:
     expected = settings["configs"] * len(settings["seeds"])
     print(
         f"sweep folder: {sweep_dir}\n{settings['algo'].upper()} on {settings['env_id']}: "
         f"{settings['configs']} config(s) x {len(settings['seeds'])} seeds = {expected} trials"
-        + (" (resuming)" if args.resume else ""),
+        + (" (resuming)" if resuming else ""),
         flush=True,
     )
-    connect(address, args.num_cpus)
-    grid = run_tune(settings, sweep_dir, resume=bool(args.resume))
+    with StopTune() as stopping:
+        connect(address, num_cpus, settings["cpus_per_trial"])
+        grid = run_tune(settings, sweep_dir, resume=resuming)
     summary = summarize_sweep(settings, sweep_dir, expected)
     if summary["configs"]:
         print_results(summary)
         print(f"results: {sweep_dir / RESULTS_FILE}, learning_curves.png, final_scores.png")
+    if stopping.requested:
+        print(
+            f"{PROG}: interrupted: {summary['trials_finished']} of {expected} trials finished; "
+            f"resume with --resume {sweep_dir}",
+            file=sys.stderr,
+            flush=True,
+        )
+        return cli.EXIT_INTERRUPTED
     if not summary["complete"]:
         results = [grid[i] for i in range(len(grid))]  # ResultGrid indexes; it declares no __iter__
         failed = [str(r.error).split("\n")[0] for r in results if r.error is not None]
@@ -632,4 +913,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(cli.run(main, PROG))

@@ -15,6 +15,8 @@ matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rigid_env.files import atomic_open  # noqa: E402
+
 METRICS = (("mean_return", "evaluation return", 1.0), ("success_rate", "success rate (%)", 100.0))
 
 
@@ -56,8 +58,7 @@ def learning_curves(
     axes[1].set_xlabel("environment steps")
     axes[0].legend(loc="lower right", fontsize="small")
     axes[0].set_title(f"{title}: mean over seeds, 95% bootstrap band")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
     return path
 
 
@@ -88,6 +89,14 @@ def final_scores(results: list[dict], path: Path, title: str) -> Path:
         ax.set_title(f"{'IQM' if stat == 'iqm' else 'mean'} {ylabel}", fontsize="medium")
         ax.grid(axis="x", alpha=0.3)
     fig.suptitle(f"{title}: final scores, 95% bootstrap intervals over seeds")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
     return path
+
+
+def _save(fig: plt.Figure, path: Path) -> None:
+    """Atomically, as every file of a run: a reader sees the old figure or the new one."""
+    try:
+        with atomic_open(path) as f:
+            fig.savefig(f, format="png", dpi=110)
+    finally:
+        plt.close(fig)

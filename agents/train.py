@@ -18,6 +18,13 @@ evaluation) and on Ctrl-C or SIGTERM, which then exit with status 130 and ``run.
 ``interrupted``; a second Ctrl-C exits at once. Every file is written atomically. A mistake in
 the arguments exits with status 2 and one line on stderr, before any work.
 
+A run folder belongs to one live process (:mod:`agents.ownership`; ``run.json`` names it under
+``owner``): a second ``--out`` or ``--resume`` on a run in use is refused, naming its owner; a run
+whose ``run.json`` says ``running`` but whose owner is gone stopped unexpectedly, and
+``--resume`` takes it over. A fault of the file system (no space, file too large, permission,
+read-only, a network file system gone) exits with status 74 and one line naming the path and
+the cause; ``run.json`` is marked ``failed`` where it can still be written.
+
 Throughput is measured on the way: env steps per second of wall time, and the shares of it spent
 inside the vector env and inside the simulator's ``Scene.step``.
 
@@ -27,6 +34,7 @@ by sweeps); they take a ``stop`` callable instead of handling signals themselves
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
@@ -45,14 +53,14 @@ from rigid_env.envs.core import TaskVectorEnv
 from rigid_env.files import atomic_open, write_text
 from rigid_env.sim import StageTimer
 
-from . import run_folder
+from . import ownership, run_folder
 from .plan import DEFAULT_ENV, DEFAULT_EVAL_SEED, Plan, algo_class, make_plan, plan_of_record
 from .rollout import make_vec, run_episodes
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
     from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.vec_env import VecMonitor
+    from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
     from .vec_adapter import GymVectorToSB3
 
@@ -141,19 +149,38 @@ def train(
     run_folder.check_new(out, overwrite)
     plan = make_plan(env_id, algo, timesteps, seed, n_envs, overrides, eval_seed, checkpoint_every)
     env, adapter, timed = _make_env(plan)
+    model = build_model(plan, env)
+    with ownership.owning(out, "--out") as claim:
+        run_folder.prepare_new(out, overwrite)  # checked again: no other process starts here now
+        session = _Session(plan, out, env, adapter, timed, model, log, stop, on_evaluation)
+        session.owner = claim.owner.as_record()
+        return session.run(progress)
+
+
+def build_model(plan: Plan, env: VecEnv) -> BaseAlgorithm:
+    """The SB3 model of ``plan`` on ``env`` (seeded): an argument SB3 rejects is a
+    :class:`UsageError` naming the overrides, when there are any (else a bug of the files)."""
     env.seed(plan.seed)
-    cls = algo_class(plan.algo)
     try:
-        model = cls(env=env, seed=plan.seed, device="cpu", verbose=0, **plan.kwargs)
+        return algo_class(plan.algo)(
+            env=env, seed=plan.seed, device="cpu", verbose=0, **plan.kwargs
+        )
     except (TypeError, ValueError, AssertionError) as error:
         if not plan.overrides:
             raise
         raise UsageError(
-            f"overrides (--set): {algo.upper()} rejects {plan.overrides}: {error}"
+            f"overrides (--set): {plan.algo.upper()} rejects {plan.overrides}: {error}"
         ) from None
-    run_folder.prepare_new(out, overwrite)
-    session = _Session(plan, out, env, adapter, timed, model, log, stop, on_evaluation)
-    return session.run(progress)
+
+
+def check_model(plan: Plan) -> None:
+    """Build ``plan``'s env and model once, as :func:`train` will (UsageError if SB3 rejects
+    the overrides), and close them: a check before many trainings start."""
+    env, _, _ = _make_env(plan)
+    try:
+        build_model(plan, env)
+    finally:
+        env.close()
 
 
 def resume(
@@ -169,10 +196,23 @@ def resume(
 
     The continuation is not bit-identical to an uninterrupted run: the environments restart
     from fresh episodes (seeded ``seed + steps done``) and PPO drops a partial rollout."""
+    out = Path(run_dir)
+    run_folder.read_resumable(out)  # before claiming it: a folder that is no run stays as it was
+    with ownership.owning(out, "--resume") as claim:
+        return _resume(out, claim, progress, log, stop, on_evaluation)
+
+
+def _resume(
+    out: Path,
+    claim: ownership.Claim,
+    progress: bool,
+    log: Callable[[str], None] | None,
+    stop: Callable[[], bool] | None,
+    on_evaluation: Callable[[dict], None] | None,
+) -> RunResult:
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
-    out = Path(run_dir)
-    record = run_folder.read_resumable(out)
+    record = run_folder.read_resumable(out)  # now that no other process can start on it
     plan = plan_of_record(record)
     env, adapter, timed = _make_env(plan)
     model, algo = run_folder.load_model(out / run_folder.CHECKPOINT, "--resume", env=env)
@@ -209,6 +249,14 @@ def resume(
         resumed_at=[*record.get("resumed_at", []), steps],
         checkpoint=checkpoint or None,
     )
+    session.owner = claim.owner.as_record()
+    if record.get("status") == "running":  # its owner is gone: it was not stopped, it died
+        dead = record.get("owner") or {}
+        session.log(
+            f"{out} stopped unexpectedly (run.json says running; its owner, pid "
+            f"{dead.get('pid', '?')} on {dead.get('host', '?')}, is gone): taking it over from "
+            f"the checkpoint at {steps:,d} steps"
+        )
     return session.run(progress)
 
 
@@ -261,6 +309,7 @@ class _Session:
         self.start_steps = int(model.num_timesteps)
         self.checkpoint_info = checkpoint  # the last one: where a resume would start
         self.throughput: dict = {}
+        self.owner: dict | None = None  # the process training it (host, pid, start), in run.json
         self.eval_seconds = 0.0
         self.created = time.strftime("%Y-%m-%dT%H:%M:%S")
 
@@ -318,6 +367,28 @@ class _Session:
     # --- the run --------------------------------------------------------------------------------
 
     def run(self, progress: bool) -> RunResult:
+        """The run; whatever ends it early is recorded in ``run.json`` where that can still be
+        written (``interrupted`` after Ctrl-C, else ``failed``). A fault of the file system
+        without a file name (a write of SB3's ``monitor.csv``) names the run folder."""
+        try:
+            return self._run(progress)
+        except KeyboardInterrupt:  # no stop() was wired to the signal: the last checkpoint stays
+            self._record_end("interrupted")
+            raise
+        except OSError as error:
+            self._record_end("failed")
+            if error.filename is None and cli.is_fault(error):
+                raise OSError(error.errno, error.strerror, str(self.out)) from error
+            raise
+        except Exception:
+            self._record_end("failed")
+            raise
+
+    def _record_end(self, status: str) -> None:
+        with contextlib.suppress(OSError):  # the same fault again: the last record stays
+            self.write_record(status)
+
+    def _run(self, progress: bool) -> RunResult:
         import torch
         from stable_baselines3.common.monitor import ResultsWriter
 
@@ -359,20 +430,13 @@ class _Session:
             )
         callback = _callback(self)
         start, cpu_start = time.perf_counter(), time.process_time()
-        try:
-            if not stopped:
-                model.learn(
-                    total_timesteps=plan.timesteps - self.start_steps,
-                    callback=callback,
-                    progress_bar=progress,
-                    reset_num_timesteps=not resumed,
-                )
-        except KeyboardInterrupt:  # no stop() was wired to the signal: the last checkpoint stays
-            self.write_record("interrupted")
-            raise
-        except Exception:
-            self.write_record("failed")
-            raise
+        if not stopped:
+            model.learn(
+                total_timesteps=plan.timesteps - self.start_steps,
+                callback=callback,
+                progress_bar=progress,
+                reset_num_timesteps=not resumed,
+            )
         learn_seconds = time.perf_counter() - start
         cpu_seconds = time.process_time() - cpu_start
         steps = int(model.num_timesteps)
@@ -449,6 +513,7 @@ class _Session:
                 },
                 "checkpoint": self.checkpoint_info,
                 "resumed_at": self.resumed_at,
+                "owner": self.owner,
                 "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
                 "best_mean_return": self.best if math.isfinite(self.best) else None,
                 "throughput": self.throughput,

@@ -156,7 +156,7 @@ def run_training(args: argparse.Namespace, stop: Callable[[], bool]) -> RunResul
 
 
 PROG = "python -m agents.train"
-EXIT_CODES = "exit status: 0 done, 2 a mistake in the arguments (nothing done), 130 interrupted"
+EXIT_CODES = cli.EXIT_STATUSES
 
 
 def main(argv: Sequence[str] | None = None) -> int:

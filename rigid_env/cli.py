@@ -2,12 +2,16 @@
 
 A mistake by the user (a bad argument, an unusable output path, a file that is not what it should
 be) raises :class:`UsageError`; :func:`run` turns it into one line on stderr and exit status 2,
-before any work is done. Anything else is a bug in the package and keeps its traceback.
+before any work is done. A fault of the file system met while working (no space left, a file
+too large, permission denied, a read-only folder, a network file system gone: see
+:func:`is_fault`) is one line naming the path and the cause, exit status 74. Anything else is a
+bug in the package and keeps its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import signal
@@ -20,7 +24,24 @@ from types import FrameType
 from typing import NoReturn
 
 EXIT_USAGE = 2  # as argparse
+EXIT_FAULT = 74  # EX_IOERR of sysexits.h: an input/output error of the file system
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
+EXIT_STATUSES = (
+    "exit status: 0 done, 2 a mistake in the arguments (nothing done), 74 a file-system fault "
+    "(no space, file too large, permission, read-only, network; files written before are kept), "
+    "130 interrupted"
+)
+# The causes of an OSError that are the file system's, not the package's: storage full or
+# limited, access refused, the device or network file system failing or gone.
+FAULT_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in (
+        "ENOSPC", "EDQUOT", "EFBIG", "EACCES", "EPERM", "EROFS", "EIO", "ESTALE", "ENOTCONN",
+        "EHOSTDOWN", "EHOSTUNREACH", "ENETDOWN", "ENETUNREACH", "ETIMEDOUT", "ENOLCK",
+        "EREMOTEIO", "ENOMEDIUM", "ENXIO", "ENODEV", "EMFILE", "ENFILE",
+    )
+    if hasattr(errno, name)
+)  # fmt: skip
 
 
 class UsageError(ValueError):
@@ -48,6 +69,11 @@ def run(
     except UsageError as error:
         print(f"{prog}: error: {error}", file=sys.stderr, flush=True)
         return EXIT_USAGE
+    except OSError as error:
+        if not is_fault(error):
+            raise
+        print(f"{prog}: error: {fault_message(error)}", file=sys.stderr, flush=True)
+        return EXIT_FAULT
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr, flush=True)
         return EXIT_INTERRUPTED
@@ -58,6 +84,28 @@ def run(
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> NoReturn:
     raise KeyboardInterrupt
+
+
+def is_fault(error: BaseException) -> bool:
+    """Whether ``error`` is a fault of the file system (:data:`FAULT_ERRNOS`, or a failed write
+    of :func:`rigid_env.files.atomic_open`, e.g. into a folder that vanished)."""
+    from .files import WriteError
+
+    return isinstance(error, OSError) and (
+        isinstance(error, WriteError) or error.errno in FAULT_ERRNOS
+    )
+
+
+def fault_message(error: OSError) -> str:
+    """``"runs/r1/checkpoint.zip: No space left on device (ENOSPC); files written before are
+    kept"``: the path, the system's words for the cause and its errno name."""
+    code = errno.errorcode.get(error.errno or 0, "")
+    cause = (error.strerror or str(error)) + (f" ({code})" if code else "")
+    path = error.filename
+    if error.filename2 is not None:  # a rename: the file it was to become
+        path = error.filename2
+    where = f"{path}: " if path is not None else ""
+    return f"{where}{cause}; files written before are kept"
 
 
 # --- argparse types: each failure names the value and what is expected ----------------------------

@@ -4,7 +4,9 @@ Each command prints a markdown table and writes ``DIR/<command>.json`` and ``DIR
 (atomically, replacing the previous ones). The default is the full run (5–8 minutes per command);
 ``--quick`` takes about a minute per command; ``--preset tiny`` (seconds, used by the tests)
 exercises every code path. ``--out`` is checked before measuring; a mistake in the arguments
-exits with status 2 and one line on stderr.
+exits with status 2 and one line on stderr; a fault of the file system while writing (no space,
+file too large, permission, read-only) with status 74 and one line naming the file, the files
+written before it whole.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ def run_command(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0])
+    parser = cli.Parser(prog=PROG, description=__doc__.split("\n")[0], epilog=cli.EXIT_STATUSES)
     parser.add_argument("command", choices=(*COMMANDS, "all"))
     parser.add_argument("--quick", action="store_true", help="each command in under a minute")
     parser.add_argument("--preset", choices=("full", "quick", "tiny"), help="overrides --quick")

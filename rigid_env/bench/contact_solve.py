@@ -19,14 +19,17 @@ Newton steps (``python -m rigid_env.bench.contact_solve --rollout boxlanding --e
 from __future__ import annotations
 
 import argparse
+import pickle
+import sys
 import time
 import warnings
-from collections.abc import Callable
+import zipfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from rigid_env import sim
+from rigid_env import cli, resources, sim
 from rigid_env.sim.rotation import quat_angle, quat_exp
 from rigid_env.sim.scenes import landing_scene
 
@@ -219,21 +222,39 @@ def saved_policy(path: str, algo: str = "ppo") -> Callable[[np.ndarray], np.ndar
     try:
         from stable_baselines3 import PPO, SAC
     except ImportError:
-        raise SystemExit(
+        raise cli.UsageError(
             "--policy needs stable-baselines3: pip install torch==2.13.0 -e '.[rl]'"
         ) from None
     if not Path(path).is_file():
-        raise SystemExit(f"--policy: no such file: {path}")
-    model = (PPO if algo == "ppo" else SAC).load(path, device="cpu")
+        raise cli.UsageError(f"--policy: no such file: {path}")
+    try:
+        model = (PPO if algo == "ppo" else SAC).load(path, device="cpu")
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError, EOFError, RuntimeError,
+            pickle.UnpicklingError) as error:  # fmt: skip
+        raise cli.UsageError(
+            f"--policy: cannot load {path} as a stable-baselines3 {algo.upper()} model "
+            f"({type(error).__name__}: {error})"
+        ) from None
     return lambda obs: model.predict(obs, deterministic=True)[0]
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--dt", type=float, default=DT, help="time step (s), default 1/240")
-    parser.add_argument("--steps", type=int, default=480, help="steps per scene, default 480")
+PROG = "python -m rigid_env.bench.contact_solve"
+STEP_RECORD_BYTES = 64  # what a measured step keeps at least (its sweep count in a list)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = cli.Parser(prog=PROG, description=__doc__.split("\n\n")[0])
     parser.add_argument(
-        "--landing-batch", type=int, default=8, help="boxes of the landing scene, default 8"
+        "--dt", type=cli.positive_float, default=DT, help="time step (s), default 1/240"
+    )
+    parser.add_argument(
+        "--steps", type=cli.positive_int, default=480, help="steps per scene, default 480"
+    )
+    parser.add_argument(
+        "--landing-batch",
+        type=cli.positive_int,
+        default=8,
+        help="boxes of the landing scene, default 8",
     )
     parser.add_argument(
         "--starts",
@@ -248,8 +269,12 @@ def main(argv: list[str] | None = None) -> None:
         choices=["boxlanding"],
         help="instead of the scenes: per-step statistics of RigidEnv/BoxLanding-v0 rollouts",
     )
-    parser.add_argument("--episodes", type=int, default=20, help="rollout episodes, default 20")
-    parser.add_argument("--seed", type=int, default=0, help="rollout seed, default 0")
+    parser.add_argument(
+        "--episodes", type=cli.positive_int, default=20, help="rollout episodes, default 20"
+    )
+    parser.add_argument(
+        "--seed", type=cli.nonnegative_int, default=0, help="rollout seed, default 0"
+    )
     parser.add_argument(
         "--backend",
         default="auto",
@@ -257,10 +282,16 @@ def main(argv: list[str] | None = None) -> None:
         help="rollout scene backend, default auto",
     )
     parser.add_argument(
-        "--newton-after", type=int, default=None, help="SolverSettings.newton_after (rollout)"
+        "--newton-after",
+        type=cli.positive_int,
+        default=None,
+        help="SolverSettings.newton_after (rollout)",
     )
     parser.add_argument(
-        "--newton-steps", type=int, default=None, help="SolverSettings.newton_steps (rollout)"
+        "--newton-steps",
+        type=cli.nonnegative_int,
+        default=None,
+        help="SolverSettings.newton_steps (rollout)",
     )
     parser.add_argument(
         "--policy",
@@ -272,6 +303,23 @@ def main(argv: list[str] | None = None) -> None:
         "--algo", default="ppo", choices=["ppo", "sac"], help="the --policy model's algorithm"
     )
     args = parser.parse_args(argv)
+    if args.rollout is None:  # every scene at once, and what each of its steps records
+        resources.check_fits(
+            args.landing_batch * resources.SCENE_BYTES + args.steps * STEP_RECORD_BYTES,
+            f"--landing-batch {args.landing_batch} with --steps {args.steps}",
+        )
+    else:  # per physics step of every episode (BoxLanding: at most 120 actions of 8 steps)
+        resources.check_fits(
+            args.episodes * 120 * 8 * STEP_RECORD_BYTES, f"--episodes {args.episodes}"
+        )
+    try:
+        _run(args)
+    except sim.DivergenceError as error:
+        raise cli.UsageError(f"--dt {args.dt:g}: {error}") from None
+    return 0
+
+
+def _run(args: argparse.Namespace) -> None:
     if args.rollout:
         chosen = {"newton_after": args.newton_after, "newton_steps": args.newton_steps}
         settings = sim.SolverSettings(**{k: v for k, v in chosen.items() if v is not None})
@@ -306,4 +354,4 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(cli.run(main, PROG))

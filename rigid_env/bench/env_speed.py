@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import rigid_env  # noqa: F401  (registers the ids)
-from rigid_env import cli
+from rigid_env import cli, resources
 from rigid_env.sim import BACKENDS, StageTimer
 
 PROG = "python -m rigid_env.bench.env_speed"
@@ -149,6 +149,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seconds < MIN_SECONDS:
         raise cli.UsageError(f"--seconds must be at least {MIN_SECONDS}, got {args.seconds}")
+    for env_id in args.env_id or RIGID_ENVS:
+        resources.check_envs(env_id, args.num_envs, "--num-envs")
 
     singles = {}
     kwargs = {} if args.backend is None else {"backend": args.backend}

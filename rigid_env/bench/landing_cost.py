@@ -22,14 +22,14 @@ scene and batch (``peers.landing_speed``).
 
 from __future__ import annotations
 
-import argparse
+import sys
 import time
 import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
-from rigid_env import sim
+from rigid_env import cli, resources, sim
 
 from . import peers, speed
 
@@ -104,14 +104,23 @@ def measure(batch: int, block_s: float, repeats: int) -> dict[str, tuple[float, 
     return rows
 
 
+PROG = "python -m rigid_env.bench.landing_cost"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rigid_env.bench.landing_cost")
-    parser.add_argument("--batch", type=int, default=speed.BREAKDOWN_BATCH, help="batch size")
-    parser.add_argument("--block", type=float, default=0.2, help="seconds per timed block")
-    parser.add_argument("--repeats", type=int, default=5, help="blocks per figure (best kept)")
+    parser = cli.Parser(prog=PROG)
+    parser.add_argument(
+        "--batch", type=cli.positive_int, default=speed.BREAKDOWN_BATCH, help="batch size"
+    )
+    parser.add_argument(
+        "--block", type=cli.positive_float, default=0.2, help="seconds per timed block"
+    )
+    parser.add_argument(
+        "--repeats", type=cli.positive_int, default=5, help="blocks per figure (best kept)"
+    )
     args = parser.parse_args(argv)
-    if args.batch < 1:
-        raise ValueError(f"batch must be ≥ 1, got {args.batch}")
+    # The batch and a copy of it per class of element (and MuJoCo's batch beside).
+    resources.check_fits(3 * args.batch * resources.SCENE_BYTES, f"--batch {args.batch}")
     rows = measure(args.batch, args.block, args.repeats)
     print(
         f"landing, batch {args.batch}, dt {speed.DT} s, compiled, after the speed bench's "
@@ -129,4 +138,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(cli.run(main, PROG))

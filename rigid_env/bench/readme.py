@@ -21,8 +21,10 @@ import argparse
 import json
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+
+from .. import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
@@ -136,14 +138,25 @@ def render(text: str, results: Path = RESULTS) -> str:
     return BLOCK.sub(block, text)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rigid_env.bench.readme", description=__doc__)
+PROG = "python -m rigid_env.bench.readme"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = cli.Parser(
+        prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
     parser.add_argument("--results", type=Path, default=RESULTS)
     parser.add_argument("--check", action="store_true", help="exit 1 if the README is stale")
     args = parser.parse_args(argv)
+    if not args.readme.is_file():
+        raise cli.UsageError(f"--readme: {args.readme} is not a file")
     text = args.readme.read_text()
-    new = render(text, args.results)
+    try:
+        new = render(text, args.results)
+    except (OSError, ValueError) as error:  # a missing or unreadable record, an unknown block
+        raise cli.UsageError(f"--results: cannot render the tables from {args.results}: "
+                             f"{type(error).__name__}: {error}") from None  # fmt: skip
     if args.check:
         if new != text:
             print(
@@ -160,4 +173,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(cli.run(main, PROG))

@@ -23,7 +23,7 @@ physics step), a first-order load error whatever the integrator.
 
 from __future__ import annotations
 
-import argparse
+import sys
 from collections.abc import Sequence
 from typing import Any
 
@@ -32,7 +32,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import rigid_env  # noqa: F401  (registers the ids)
-from rigid_env import sim
+from rigid_env import cli, resources, sim
 from rigid_env.envs import kernels
 from rigid_env.envs.reorient import ReorientTask
 from rigid_env.sim.rotation import quat_angle, quat_multiply, quat_to_matrix, rotate_inverse
@@ -184,13 +184,18 @@ def speed(config: Config, num_envs: int, seconds: float, seed: int) -> tuple[flo
     )
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=16)
-    parser.add_argument("--num-envs", type=int, default=256)
-    parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--seed", type=int, default=0)
+PROG = "python -m rigid_env.bench.reorient_frame"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = cli.Parser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=cli.positive_int, default=16)
+    parser.add_argument("--num-envs", type=cli.positive_int, default=256)
+    parser.add_argument("--seconds", type=cli.positive_float, default=5.0)
+    parser.add_argument("--seed", type=cli.nonnegative_int, default=0)
     args = parser.parse_args(argv)
+    resources.check_envs("RigidEnv/Reorient-v0", args.num_envs, "--num-envs")
+    resources.check_envs("RigidEnv/Reorient-v0", args.episodes, "--episodes")
     print(
         f"Orientation error over {FRAMES} frames (10 s), worst frame per episode, "
         f"{args.episodes} episodes:"
@@ -207,7 +212,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         single, vec = speed(config, args.num_envs, args.seconds, args.seed)
         name, dt, skip = config
         print(f"| {name} | {dt:g} | {skip} | {single:,.0f} | {vec:,.0f} |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(cli.run(main, PROG))

@@ -19,11 +19,13 @@ speed bench times only the public ``Scene.step``.
 
 from __future__ import annotations
 
-import argparse
+import sys
 import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
+
+from rigid_env import cli
 
 from . import speed
 
@@ -93,10 +95,17 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     return out
 
 
+PROG = "python -m rigid_env.bench.step_cost"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rigid_env.bench.step_cost")
-    parser.add_argument("--block", type=float, default=0.05, help="seconds per timed block")
-    parser.add_argument("--repeats", type=int, default=20, help="blocks per figure (best kept)")
+    parser = cli.Parser(prog=PROG)
+    parser.add_argument(
+        "--block", type=cli.positive_float, default=0.05, help="seconds per timed block"
+    )
+    parser.add_argument(
+        "--repeats", type=cli.positive_int, default=20, help="blocks per figure (best kept)"
+    )
     args = parser.parse_args(argv)
     rows = {name: breakdown(name, args.block, args.repeats) for name in CASES}
     print(f"batch-1 compiled step, best µs per call ({args.repeats} blocks of {args.block} s)")
@@ -107,4 +116,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(cli.run(main, PROG))

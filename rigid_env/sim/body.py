@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike
 
 from . import mass as mass_properties
 from .shapes import Box, Polyhedron, Shape, Sphere
-from .validation import inertia_tensor, positive_scalar
+from .validation import finite_array, inertia_tensor, positive_scalar
 
 
 class Body:
@@ -32,7 +32,11 @@ class Body:
         self.inertia.setflags(write=False)
         # Any, not Shape | None: the envs read their box's corners without narrowing the union.
         self.shape: Any = shape
-        self.center_of_mass = np.array(center_of_mass, dtype=float)
+        self.center_of_mass = finite_array(center_of_mass, "center_of_mass", (3,))
+        if self.center_of_mass.shape != (3,):
+            raise ValueError(
+                f"center_of_mass must be a 3-vector, got shape {self.center_of_mass.shape}"
+            )
         self.center_of_mass.setflags(write=False)
 
     @classmethod

@@ -192,8 +192,11 @@ class Scene:
         Orientations are normalised (any non-zero quaternion is accepted).
         """
         n = self.n_bodies
-        try:
-            batch_shape = tuple(int(b) for b in np.atleast_1d(np.asarray(batch_shape, int)))
+        try:  # integers only: a float such as 2.5 is refused, not truncated
+            sizes = np.atleast_1d(np.asarray(batch_shape))
+            if sizes.ndim != 1 or (sizes.size and sizes.dtype.kind not in "iu"):
+                raise TypeError
+            batch_shape = tuple(int(b) for b in sizes)
         except (TypeError, ValueError):
             raise ValueError(f"batch_shape must be a tuple of ints, got {batch_shape!r}") from None
         if any(b < 0 for b in batch_shape):
@@ -440,25 +443,29 @@ class Scene:
         return tuple(arrays)
 
     def _diagnose(self, arrays):
-        for name, arr in zip(STATE_FIELDS, arrays, strict=True):
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"state.{name} contains NaN or infinity")
+        _require_finite(arrays)
         raise DivergenceError(
             f"the step diverged (non-finite result) with integrator {self.integrator!r} at "
             f"dt={self.dt}; use a smaller dt or a more stable integrator"
         )
 
     # --- what users read off a state ------------------------------------------------------------
-    # Each checks the state as ``step`` does (a state of another scene is a ValueError).
+    # Each checks the state as ``step`` does (a state of another scene, or one with NaN or
+    # infinity, is the ValueError ``step`` raises for it).
+
+    def _read_arrays(self, state) -> tuple[np.ndarray, ...]:
+        arrays = self._arrays(state)
+        _require_finite(arrays)
+        return arrays
 
     def linear_momentum(self, state: State) -> np.ndarray:
         """Total m v, ``(*batch, 3)``."""
-        _, _, v, _ = self._arrays(state)
+        _, _, v, _ = self._read_arrays(state)
         return np.sum(self.model.mass[:, None] * v, axis=-2)
 
     def angular_momentum(self, state: State, about=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Total world angular momentum about a world point: Σ (x − o) × m v + M ω."""
-        x, q, v, w = self._arrays(state)
+        x, q, v, w = self._read_arrays(state)
         about = _finite(about, "about")
         try:
             ok = about.shape[-1] == 3 and np.broadcast_shapes(about.shape, x.shape) == x.shape
@@ -474,7 +481,7 @@ class Scene:
 
     def kinetic_energy(self, state: State) -> np.ndarray:
         """Σ ½ m v² + ½ ωᵀ M ω, ``(*batch,)``."""
-        _, q, v, w = self._arrays(state)
+        _, q, v, w = self._read_arrays(state)
         m = self.model.mass
         spin = self.model.apply_inertia(quat_to_matrix(q), w)
         lin = 0.5 * m * np.sum(v**2, axis=-1)
@@ -482,7 +489,7 @@ class Scene:
 
     def potential_energy(self, state: State) -> np.ndarray:
         """Gravity −m g·x plus spring energy ½ k (|d| − rest)², ``(*batch,)``."""
-        x, q, _, _ = self._arrays(state)
+        x, q, _, _ = self._read_arrays(state)
         energy = np.zeros(x.shape[:-2])
         if self.model.gravity is not None:
             energy = energy - np.sum(self.model.mass * (x @ self.model.gravity), -1)
@@ -494,6 +501,13 @@ class Scene:
 
     def energy(self, state: State) -> np.ndarray:
         return self.kinetic_energy(state) + self.potential_energy(state)
+
+
+def _require_finite(arrays) -> None:
+    """The ``ValueError`` naming the first state field with NaN or infinity, if any."""
+    for name, arr in zip(STATE_FIELDS, arrays, strict=True):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"state.{name} contains NaN or infinity")
 
 
 def _norm2(q: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -19,10 +20,18 @@ from pathlib import Path
 import pytest
 
 from agents import evaluate, main_job, run_folder, train_cli
-from agents.train import train
+from agents.train import resume, train
 from rigid_env import cli
 from rigid_env.bench import __main__ as bench_cli
-from rigid_env.bench import env_speed
+from rigid_env.bench import (
+    contact_solve,
+    env_speed,
+    landing_cost,
+    readme,
+    reorient_frame,
+    step_cost,
+)
+from rigid_env.cli import UsageError
 
 ID = "RigidEnv/Reorient-v0"
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,6 +41,11 @@ COMMANDS = {
     "main_job": (main_job.main, main_job.PROG),
     "bench": (bench_cli.main, bench_cli.PROG),
     "env_speed": (env_speed.main, env_speed.PROG),
+    "contact_solve": (contact_solve.main, contact_solve.PROG),
+    "landing_cost": (landing_cost.main, landing_cost.PROG),
+    "step_cost": (step_cost.main, step_cost.PROG),
+    "reorient_frame": (reorient_frame.main, reorient_frame.PROG),
+    "readme": (readme.main, readme.PROG),
 }
 
 
@@ -90,7 +104,8 @@ TRAIN_CASES = [
     (["--set", "n_steps=[1"], "--set n_steps"),
     (["--set", "learning_rate=lin_fast"], "learning_rate"),
     (["--set", "eval_freq=0"], "eval_freq"),
-    (["--set", "n_steps=abc"], "PPO rejects"),
+    (["--set", "n_steps=abc"], "n_steps must be an integer >= 1, got 'abc'"),
+    (["--set", "policy_kwargs={no_such_option: 1}"], "PPO rejects"),
     (["--set", "env_kwargs={no_such_option: 1}"], "env_kwargs"),
     (["--out", "file.txt"], "file.txt is a file"),
     (["--out", "file.txt/run"], "file.txt"),
@@ -102,6 +117,37 @@ TRAIN_CASES = [
     (["--resume", "broken"], "run.json: unreadable"),
     (["--resume", "done", "--timesteps", "10"], "drop ['--timesteps']"),
     (["--resume", "done", "--overwrite"], "not allowed with argument"),
+    # Values stable-baselines3 accepts but cannot train with, refused naming the parameter.
+    (["--set", "gamma=1.5"], "gamma must be a number in (0, 1], got 1.5"),
+    (["--set", "gamma=0"], "gamma must be a number in (0, 1], got 0"),
+    (["--set", "n_epochs=0"], "n_epochs must be an integer >= 1, got 0"),
+    (["--set", "policy_kwargs={net_arch: [-8]}"], "policy_kwargs net_arch must be a list"),
+    (["--set", "policy_kwargs={net_arch: {pi: [8], vf: [0]}}"], "policy_kwargs net_arch"),
+    (["--set", "policy_kwargs={activation_fn: Nope}"], "policy_kwargs activation_fn"),
+    (["--set", "learning_rate=0"], "learning_rate must be a finite number > 0"),
+    (["--set", "learning_rate=.inf"], "learning_rate must be a finite number > 0"),
+    (["--set", "learning_rate=lin_-1e-3"], "learning_rate must be"),
+    (["--set", "clip_range=0"], "clip_range must be"),
+    (["--set", "gae_lambda=2"], "gae_lambda must be a number in [0, 1]"),
+    (["--set", "ent_coef=-1"], "ent_coef must be a finite number >= 0"),
+    (["--set", "max_grad_norm=0"], "max_grad_norm must be a finite number > 0"),
+    (["--set", "batch_size=1"], "batch_size must be >= 2"),
+    (["--set", "n_steps=1", "--n-envs", "1"], "n_steps x n_envs must be > 1"),
+    (["--set", "n_steps=2.5"], "n_steps must be an integer >= 1, got 2.5"),
+    (["--set", "policy=CnnPolicy"], 'policy must be "MlpPolicy"'),
+    (["--algo", "sac", "--set", "tau=0"], "tau must be a number in (0, 1]"),
+    (["--algo", "sac", "--set", "buffer_size=0"], "buffer_size must be an integer >= 1"),
+    (["--algo", "sac", "--set", "train_freq=[1, hour]"], "train_freq must be"),
+    (["--algo", "sac", "--set", "gradient_steps=0"], "gradient_steps must be"),
+    (["--algo", "sac", "--set", "ent_coef=auto_-1"], "ent_coef must be"),
+    # Sizes that cannot fit in memory, refused with an estimate.
+    (["--n-envs", "1000000000"], "needs ~"),
+    (["--set", "eval_episodes=1000000000"], "needs ~"),
+    (["--set", "policy_kwargs={net_arch: [1000000, 1000000]}"], "networks"),
+    (
+        ["--algo", "sac", "--set", "buffer_size=100000000000", "--timesteps", "100000000000"],
+        "buffer",
+    ),  # fmt: skip
 ]
 
 
@@ -138,6 +184,7 @@ def in_run(model_zip: Path, folder: Path, env_id: str) -> Path:
 
 EVALUATE_CASES = [
     (["--episodes", "0"], "--episodes"),
+    (["--episodes", "1000000000"], "--episodes 1000000000 (RigidEnv/Reorient-v0) needs ~"),
     (["--seed", "-3"], "--seed"),
     (["--env", "NoSuch-v0"], "unknown env id"),
     (["--policy", "missing.zip"], "--policy"),
@@ -179,6 +226,8 @@ def test_evaluate_without_run_json_checks_the_spaces(files, capsys, model_zip):
 
 MAIN_JOB_CASES = [
     (["--episodes", "0"], "--episodes"),
+    (["--episodes", "1000000000"], "needs ~"),
+    (["--set", "gamma=2"], "gamma must be a number in (0, 1]"),
     (["--eval-seed", "-1"], "--eval-seed"),
     (["--out", "done"], "already holds a run"),
     (["--out", "notes"], "holds no main_job.json"),
@@ -208,6 +257,45 @@ BENCH_CASES = [
     ("env_speed", [ID, "--num-envs", "0"], "--num-envs"),
     ("env_speed", [ID, "--seed", "-1"], "--seed"),
     ("env_speed", ["NoSuch-v0"], "unknown env id"),
+    ("env_speed", [ID, "--num-envs", "1000000000000"], "--num-envs 1000000000000"),
+    ("contact_solve", ["--dt", "0"], "--dt"),
+    ("contact_solve", ["--dt", "-0.01"], "--dt"),
+    ("contact_solve", ["--dt", "nan"], "--dt"),
+    ("contact_solve", ["--dt", "inf"], "--dt"),
+    (
+        "contact_solve",
+        ["--dt", "1e300", "--steps", "5", "--only", "landing", "--starts", "particle"],
+        "--dt 1e+300: the step diverged",
+    ),  # fmt: skip
+    ("contact_solve", ["--steps", "-1"], "--steps"),
+    ("contact_solve", ["--steps", "0"], "--steps"),
+    ("contact_solve", ["--steps", "100000000000000"], "needs ~"),
+    ("contact_solve", ["--landing-batch", "0"], "--landing-batch"),
+    ("contact_solve", ["--landing-batch", "1000000000000"], "--landing-batch 1000000000000"),
+    ("contact_solve", ["--rollout", "boxlanding", "--episodes", "0"], "--episodes"),
+    ("contact_solve", ["--rollout", "boxlanding", "--episodes", "10000000000"], "needs ~"),
+    ("contact_solve", ["--rollout", "boxlanding", "--newton-after", "0"], "--newton-after"),
+    ("contact_solve", ["--rollout", "boxlanding", "--newton-steps", "-1"], "--newton-steps"),
+    ("contact_solve", ["--rollout", "boxlanding", "--policy", "missing.zip"], "no such file"),
+    ("contact_solve", ["--rollout", "boxlanding", "--policy", "bad.zip"], "cannot load"),
+    ("landing_cost", ["--batch", "0"], "--batch"),
+    ("landing_cost", ["--batch", "1000000000000"], "--batch 1000000000000 needs ~"),
+    ("landing_cost", ["--repeats", "0"], "--repeats"),
+    ("landing_cost", ["--block", "0"], "--block"),
+    ("landing_cost", ["--block", "nan"], "--block"),
+    ("step_cost", ["--repeats", "0"], "--repeats"),
+    ("step_cost", ["--repeats", "-3"], "--repeats"),
+    ("step_cost", ["--block", "-1"], "--block"),
+    ("reorient_frame", ["--episodes", "0"], "--episodes"),
+    ("reorient_frame", ["--num-envs", "0"], "--num-envs"),
+    ("reorient_frame", ["--num-envs", "1000000000000"], "needs ~"),
+    ("reorient_frame", ["--seconds", "0"], "--seconds"),
+    ("readme", ["--readme", "nowhere.md"], "--readme"),
+    (
+        "readme",
+        ["--readme", str(ROOT / "README.md"), "--check", "--results", "notes"],
+        "--results: cannot render",
+    ),  # fmt: skip
 ]
 
 
@@ -234,6 +322,8 @@ def test_bugs_keep_their_traceback(monkeypatch):
 
 SUBPROCESS_CASES = [  # one per entry point; each a mistake found before torch is imported
     (["agents.train", "--timesteps", "-5"], "--timesteps"),
+    (["rigid_env.bench.landing_cost", "--repeats", "0"], "--repeats"),
+    (["rigid_env.bench.contact_solve", "--dt", "0"], "--dt"),
     (["agents.evaluate", "--episodes", "0"], "--episodes"),
     (["agents", "--out", "done"], "already holds a run"),
     (["rigid_env.bench", "accuracy", "--out", "file.txt"], "--out"),
@@ -285,3 +375,149 @@ def test_sigterm_stops_any_command_with_status_130_without_traceback(tmp_path):
         assert proc.wait(timeout=30) == cli.EXIT_INTERRUPTED
     stderr = proc.stderr.read()
     assert "Traceback" not in stderr and "interrupted" in stderr
+
+
+# --- hyperparameters from the Zoo-format files ----------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "line, expected",
+    [
+        ("  gamma: 0.99\n", "  gamma: 1.5\n"),
+        ("  n_epochs: 10\n", "  n_epochs: 0\n"),
+        ("net_arch=[128, 128]", "net_arch=[128, -128]"),
+        ("  learning_rate: lin_1e-3\n", "  learning_rate: -1.0e-3\n"),
+    ],
+)
+def test_a_bad_value_in_a_hyperparameter_file_is_one_line_naming_file_env_and_key(
+    files, capsys, monkeypatch, line, expected
+):
+    from agents import config
+
+    folder = files / "hyperparams"
+    folder.mkdir()
+    text = config.config_path("ppo").read_text()
+    reorient = text.index("RigidEnv/Reorient-v0:")
+    block_end = text.index("RigidEnv/BoxLanding-v0:")
+    block = text[reorient:block_end]
+    assert line in block
+    (folder / "ppo.yml").write_text(
+        text[:reorient] + block.replace(line, expected) + text[block_end:]
+    )
+    monkeypatch.setattr(config, "HYPERPARAMS_DIR", folder)
+    key = expected.split(":")[0].split("=")[0].strip()
+    err = f"ppo.yml (RigidEnv/Reorient-v0): {'policy_kwargs ' if key == 'net_arch' else ''}{key}"
+    assert_usage_error("train", ["--out", "new_run", "--timesteps", "64"], err, capsys, files)
+    # The other env's block is fine, and trains from the same file.
+    from agents.plan import make_plan
+
+    make_plan("RigidEnv/BoxLanding-v0", "ppo")
+
+
+GOOD_VALUES = [
+    ("ppo", {"learning_rate": "lin_3e-4", "clip_range": "lin_0.2", "clip_range_vf": None,
+             "target_kl": 0.02, "gamma": 1, "gae_lambda": 0, "normalize_advantage": False,
+             "batch_size": 1, "policy_kwargs": "dict(net_arch=dict(pi=[8], vf=[16, 16]), "
+             "activation_fn=nn.ReLU, ortho_init=False)"}),
+    ("sac", {"learning_rate": 3e-4, "ent_coef": "auto_0.1", "train_freq": [1, "episode"],
+             "gradient_steps": -1, "target_entropy": -3.0, "learning_starts": 0, "tau": 1.0,
+             "policy_kwargs": {"net_arch": {"pi": [8], "qf": [8]}, "n_critics": 1}}),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("algo, overrides", GOOD_VALUES, ids=[a for a, _ in GOOD_VALUES])
+def test_values_that_train_are_accepted(algo, overrides):
+    """The checks refuse only what cannot train: SB3's own edge values pass (and SB3 builds
+    the model from them)."""
+    from agents.plan import make_plan
+    from agents.train import check_model
+
+    plan = make_plan(ID, algo, 64, n_envs=2, overrides={**overrides, "buffer_size": 100}
+                     if algo == "sac" else overrides)  # fmt: skip
+    check_model(plan)
+
+
+# --- a hand-edited run.json on --resume -----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def interrupted_run(tmp_path_factory) -> Path:
+    """A tiny run stopped after a few steps: resumable (checkpoint.zip, status interrupted)."""
+    out = tmp_path_factory.mktemp("interrupted") / "run"
+    polls = [0]
+
+    def stop() -> bool:
+        polls[0] += 1
+        return polls[0] > 4
+
+    overrides = dict(n_envs=2, n_steps=32, batch_size=32, n_epochs=1, eval_freq=10**5,
+                     eval_episodes=2, policy_kwargs={"net_arch": [8]})  # fmt: skip
+    result = train(ID, timesteps=256, out=out, overrides=overrides, progress=False, stop=stop)
+    assert result.status == "interrupted" and (out / "checkpoint.zip").is_file()
+    return out
+
+
+RECORD_EDITS = [
+    ({"status": "paused"}, "status must be one of"),
+    ({"evaluations": "none"}, "evaluations must be a list of rows"),
+    (
+        {
+            "evaluations": [
+                {"env_steps": "10", "mean_return": 1, "std_return": 0, "success_rate": 0}
+            ]
+        },
+        "evaluations must be",
+    ),  # fmt: skip
+    ({"best_mean_return": "high"}, "best_mean_return must be null or a finite number"),
+    ({"resumed_at": 5}, "resumed_at must be a list of step counts"),
+    ({"checkpoint": {"steps": 8}}, "checkpoint must be null or"),
+    ({"analytic": {"mean_return": "x"}}, "analytic must be null or a summary"),
+    ({"steps_done": -1}, "steps_done must be a step count"),
+    ({"loop": [1]}, "loop must be a mapping"),
+    ({"env_kwargs": "fast"}, "env_kwargs must be a mapping"),
+    ({"env_kwargs": {"no_such_option": 1}}, "env_kwargs: RigidEnv/Reorient-v0 rejects"),
+    ({"timesteps": -1}, "timesteps must be an integer >= 1"),
+    ({"n_envs": "2"}, "n_envs must be an integer >= 1"),
+    ({"seed": 2**40}, "seed must be an integer <="),
+    ({"eval_freq": None}, "eval_freq"),
+    ({"algo": "dqn"}, "algo must be one of"),
+    ({"env_id": "RigidEnv/NoSuch-v0"}, "unknown env id"),
+    ({"env_id": ["RigidEnv/Reorient-v0"]}, "unknown env id"),
+    ({"n_envs": 10**9}, "needs ~"),
+]
+
+
+@pytest.mark.parametrize("edit, expected", RECORD_EDITS, ids=[str(e)[:50] for e, _ in RECORD_EDITS])
+def test_a_hand_edited_run_json_on_resume_is_one_line(interrupted_run, tmp_path, capsys, edit,
+                                                      expected):  # fmt: skip
+    run = tmp_path / "run"
+    run.mkdir()
+    for path in interrupted_run.iterdir():
+        (run / path.name).write_bytes(path.read_bytes())
+    record = json.loads((run / "run.json").read_text())
+    (run / "run.json").write_text(json.dumps({**record, **edit}))
+    assert_usage_error("train", ["--resume", str(run)], expected, capsys, tmp_path)
+    with pytest.raises(UsageError, match=re.escape(expected)):  # the library refuses alike
+        resume(run, progress=False)
+
+
+def test_memory_estimates_count_the_process_limit(monkeypatch):
+    """``ulimit -v`` (RLIMIT_AS) lowers what is available below the machine's memory."""
+    import resource
+
+    from rigid_env import resources
+
+    resources.check_envs(ID, 200_000, "--episodes")  # ~200 MB: fits a test machine
+    real = resource.getrlimit
+    limit = 64 * 2**20
+    monkeypatch.setattr(
+        resource,
+        "getrlimit",
+        lambda which: (
+            (limit, resource.RLIM_INFINITY) if which == resource.RLIMIT_AS else real(which)
+        ),
+    )
+    assert resources.available_memory() == limit
+    with pytest.raises(UsageError, match=r"--episodes 200000 \(RigidEnv/Reorient-v0\) needs ~"
+                       r"195 MiB, this machine has 64 MiB available"):  # fmt: skip
+        resources.check_envs(ID, 200_000, "--episodes")

@@ -7,15 +7,12 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from tiny_budgets import TINY_SET
+from training_processes import start_training, wait_for, wait_for_recorded_checkpoint
 
 from agents import evaluate, run_folder, train_cli
 from agents.train import resume, train
@@ -24,7 +21,6 @@ from rigid_env.cli import UsageError
 from rigid_env.files import TEMP_SUFFIX, atomic_open, remove_partials, write_text
 
 ID = "RigidEnv/Reorient-v0"
-ROOT = Path(__file__).resolve().parents[2]
 TINY = dict(
     n_envs=2,
     n_steps=32,
@@ -146,39 +142,6 @@ def test_sac_checkpoint_keeps_the_replay_buffer(tmp_path):
     assert model.replay_buffer.size() == 30 - 1
     result = resume(out, progress=False)
     assert result.status == "finished" and result.steps_done == 200
-
-
-def start_training(folder: Path, extra: list[str]) -> subprocess.Popen:
-    args = ["--timesteps", "100000", "--n-envs", "2", "--no-progress", "--out", "run"]
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.Popen(
-        [sys.executable, "-m", "agents.train", *args, *TINY_SET, *extra],
-        cwd=folder,
-        env=env,
-        stdout=(folder / "stdout.txt").open("w"),
-        stderr=(folder / "stderr.txt").open("w"),
-    )
-
-
-def wait_for(path: Path, proc: subprocess.Popen, timeout: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not path.exists():
-        assert proc.poll() is None, (path.parent.parent / "stderr.txt").read_text()
-        assert time.monotonic() < deadline, f"no {path} after {timeout} s"
-        time.sleep(0.05)
-
-
-def wait_for_recorded_checkpoint(run: Path, proc: subprocess.Popen, timeout: float = 120.0):
-    """Until ``run.json`` records a checkpoint: the checkpoint file is written (atomically)
-    before the record that names it, so its mere existence is not enough."""
-    deadline = time.monotonic() + timeout
-    while True:
-        record = run / "run.json"
-        if record.exists() and json.loads(record.read_text()).get("checkpoint") is not None:
-            return
-        assert proc.poll() is None, (run.parent / "stderr.txt").read_text()
-        assert time.monotonic() < deadline, f"no checkpoint recorded in {record} after {timeout} s"
-        time.sleep(0.05)
 
 
 def test_ctrl_c_saves_a_checkpoint_that_evaluate_then_runs(tmp_path, capsys):

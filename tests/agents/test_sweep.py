@@ -10,6 +10,7 @@ switch for single-machine use (RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0).
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import secrets
@@ -25,7 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import evaluate, sweep
+from agents import evaluate, ownership, sweep
+from rigid_env import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 ID = "RigidEnv/Reorient-v0"
@@ -216,8 +218,13 @@ def local_sweep(tmp_path_factory, local_env):
 
 def test_interrupted_sweep_resumes_without_rerunning_finished_trials(local_sweep):
     out, partial = local_sweep["out"], local_sweep["partial"]
-    assert local_sweep["code"] != 0, local_sweep["interrupted"][-4000:]
-    assert f"--resume {out}" in local_sweep["interrupted"]
+    # Ctrl-C exits as every command does (130), after Tune saved a state to resume from.
+    assert local_sweep["code"] == 130, local_sweep["interrupted"][-4000:]
+    assert (
+        f"interrupted: 1 of 4 trials finished; resume with --resume {out}"
+        in (local_sweep["interrupted"])
+    )
+    assert "Traceback" not in local_sweep["interrupted"]
     assert not partial["complete"]
     # Finished before the interrupt, as Ray Tune's saved state says: only the trial let through.
     done = {
@@ -460,20 +467,207 @@ def test_dotted_keys_keep_the_rest_of_the_dict():
     assert block["policy_kwargs"]["net_arch"] == [128, 128]  # the file's block is not changed
 
 
-def test_bad_settings_are_refused_before_ray_starts(tmp_path, capsys):
-    base = ["--out", str(tmp_path / "s")]
-    for args, message in (
-        (["--set", "no_such_key=1"], "--set"),
-        (["--set", "seed=3"], "--seeds"),
-        (["--search", "gamma=grid(0.9, 0.99)", "learning_rate=uniform(1e-4, 1e-3)"], "grid"),
-        (["--search", "gamma=grid(0.9, 0.99)", "--samples", "3"], "--samples"),
-        (["--seeds", "0"], "--seeds"),
-        (["--algo", "dqn"], "--algo"),
-        (["--resume", str(tmp_path)], "--resume"),
-        (["--resume", str(tmp_path), "--seeds", "2"], "--resume"),
-    ):
-        with pytest.raises(SystemExit) as exit_info:
-            sweep.main(args if "--resume" in args else args + base)
-        assert exit_info.value.code == 2
-        assert message in capsys.readouterr().err
+@pytest.fixture()
+def no_ray(monkeypatch):
+    """Fails the test if Ray would start: every refusal comes before."""
+
+    def connect(*args, **kwargs):
+        raise AssertionError("Ray was started")
+
+    monkeypatch.setattr(sweep, "connect", connect)
+
+
+def refused(capsys, argv: list[str]) -> str:
+    """``agents.sweep argv`` exits 2 with one line on stderr (returned), no usage block."""
+    capsys.readouterr()
+    code = cli.run(sweep.main, sweep.PROG, argv)
+    out, err = capsys.readouterr()
+    assert code == cli.EXIT_USAGE, (out, err)
+    assert err.startswith(f"{sweep.PROG}: error: ") and err.count("\n") == 1, err
+    assert "usage:" not in err
+    return err
+
+
+BAD_SETTINGS = [
+    (["--set", "no_such_key=1"], "--set: 'no_such_key' is not a setting of PPO"),
+    (["--set", "seed=3"], "(use --seeds)"),
+    (["--set", "n_steps=[1"], "--set n_steps:"),
+    (["--set", "gamma=1.5"], "--set: gamma must be a number in (0, 1], got 1.5"),
+    (["--set", "policy_kwargs.net_arch=[-8]"], "policy_kwargs net_arch must be a list"),
+    (["--set", "n_envs=1000000000"], "needs ~"),
+    (["--set", "policy_kwargs.no_such_option=1"], "--set: PPO rejects"),  # SB3's own check
+    (["--search", "n_epochs=grid(5, 0)"], "--search (n_epochs=0): n_epochs must be an integer"),
+    (["--search", "gamma=uniform(0.9, 1.5)"], "--search (gamma=1.5): gamma must be a number"),
+    (["--search", "learning_rate=loguniform(1e-4, 1e999)"], "two finite numbers"),
+    (
+        ["--search", "policy_kwargs.net_arch=choice([8], [0])"],
+        "--search (policy_kwargs.net_arch=[0])",
+    ),
+    (["--search", "gamma=grid(0.9, 0.99)", "learning_rate=uniform(1e-4, 1e-3)"], "grid"),
+    (["--search", "gamma=grid(0.9, 0.99)", "--samples", "3"], "--samples"),
+    (["--seeds", "0"], "--seeds"),
+    (["--seeds", "1000000000000"], "at most 10000 trials"),
+    (["--search", "gamma=uniform(0.9, 0.99)", "--samples", "5000", "--seeds", "3"], "15000 trials"),
+    (["--algo", "dqn"], "--algo"),
+    (["--env", "RigidEnv/NoSuch-v0"], "unknown env id"),
+    (["--num-cpus", "0"], "--num-cpus"),
+    (["--num-cpus", "-2"], "--num-cpus"),
+    (["--cpus-per-trial", "0"], "--cpus-per-trial"),
+    (["--cpus-per-trial", "-1"], "--cpus-per-trial"),
+    (["--cpus-per-trial", "nan"], "--cpus-per-trial"),
+    (["--cpus-per-trial", "inf"], "--cpus-per-trial"),
+    (["--cpus-per-trial", "3", "--num-cpus", "2"], "more than the 2 CPUs"),
+    (["--cpus-per-trial", "100000"], "more than the"),
+    (["--max-failures", "-1"], "--max-failures"),
+    (["--num-cpus", "2", "--address", "auto"], "only for a local Ray instance"),
+]
+
+
+@pytest.mark.parametrize("argv, message", BAD_SETTINGS, ids=[" ".join(a) for a, _ in BAD_SETTINGS])
+def test_bad_settings_are_one_line_before_ray_starts(tmp_path, capsys, no_ray, argv, message):
+    err = refused(capsys, [*argv, "--out", str(tmp_path / "s")])
+    assert message in err, err
     assert not (tmp_path / "s").exists()  # nothing written for a refused sweep
+
+
+def test_unusable_out_and_resume_folders_are_one_line(tmp_path, capsys, no_ray, monkeypatch):
+    (tmp_path / "file.txt").write_text("x")
+    assert "is a file" in refused(capsys, ["--out", str(tmp_path / "file.txt")])
+    assert "holds no sweep" in refused(capsys, ["--resume", str(tmp_path)])
+    err = refused(capsys, ["--resume", str(tmp_path), "--seeds", "2"])
+    assert "only --address and --num-cpus" in err
+    # A read-only place (injected: the tests may run as root, whom permissions do not stop).
+    real_mkdir = Path.mkdir
+
+    def mkdir(self, *args, **kwargs):
+        if "readonly" in self.parts:
+            raise OSError(errno.EROFS, "Read-only file system", str(self))
+        return real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", mkdir)
+    err = refused(capsys, ["--seeds", "1", "--out", str(tmp_path / "readonly" / "s")])
+    assert "Read-only file system" in err and "--out" in err
+
+
+CORRUPT_SETTINGS = [
+    ("{not json", "is unreadable"),
+    ("[1, 2]", "expected a JSON object"),
+    ('{"env_id": "RigidEnv/Reorient-v0"}', "algo must be of type str"),
+    ({"seeds": list(range(10**4 + 1))}, "seeds must be 1 to 10000"),
+    ({"seeds": [0, 0]}, "distinct"),
+    ({"seeds": [-1]}, "seeds must be"),
+    ({"cpus_per_trial": 0}, "--cpus-per-trial must be a finite number > 0"),
+    ({"max_failures": -1}, "--max-failures"),
+    ({"configs": 7}, "configs must be 2"),
+    ({"search": {"gamma": 3}}, "search must map"),
+    ({"search": {"gamma": "normal(0, 1)"}}, "--search"),
+    ({"set": {"gamma": 2.0}}, "--set: gamma must be"),
+    ({"metric": "loss"}, "--metric"),
+    ({"algo": "dqn"}, "--algo"),
+]
+
+
+@pytest.mark.parametrize(
+    "content, message", CORRUPT_SETTINGS, ids=[str(c)[:40] for c, _ in CORRUPT_SETTINGS]
+)
+def test_a_corrupt_sweep_json_on_resume_is_one_line(tmp_path, capsys, no_ray, content, message):
+    good = {
+        "env_id": ID, "algo": "ppo", "seeds": [0, 1], "set": {"n_timesteps": 64},
+        "search": {"n_epochs": "grid(1, 2)"}, "samples": 1, "configs": 2,
+        "metric": "mean_return", "cpus_per_trial": 1.0, "max_failures": 3,
+    }  # fmt: skip
+    text = content if isinstance(content, str) else json.dumps({**good, **content})
+    (tmp_path / sweep.SETTINGS_FILE).write_text(text)
+    err = refused(capsys, ["--resume", str(tmp_path)])
+    assert f"{tmp_path / sweep.SETTINGS_FILE}" in err and message in err, err
+
+
+def sweep_without_ray(monkeypatch, interrupt: str | None = None):
+    """Stand-ins for Ray: ``connect`` does nothing; ``run_tune`` installs a SIGUSR1 handler as
+    Tune's fit() does, then receives ``interrupt`` (a signal name) as from the terminal, and
+    returns no trials. Returns the list of signals Tune's handler saw."""
+    seen: list[int] = []
+
+    def run_tune(settings, sweep_dir, resume):
+        previous = signal.signal(signal.SIGUSR1, lambda sig, frame: seen.append(sig))
+        try:
+            if interrupt is not None:
+                os.kill(os.getpid(), getattr(signal, interrupt))
+            return []
+        finally:
+            signal.signal(signal.SIGUSR1, previous)
+
+    monkeypatch.setattr(sweep, "connect", lambda *args: None)
+    monkeypatch.setattr(sweep, "run_tune", run_tune)
+    monkeypatch.setattr(sweep, "finished_trial_ids", lambda sweep_dir: set())
+    return seen
+
+
+@pytest.mark.parametrize("name", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_asks_tune_to_stop_and_exits_130_with_a_resumable_sweep(
+    tmp_path, capsys, monkeypatch, name
+):
+    seen = sweep_without_ray(monkeypatch, interrupt=name)
+    out = tmp_path / "s"
+    handlers = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    code = cli.run(sweep.main, sweep.PROG, ["--seeds", "2", "--set", *TINY, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_INTERRUPTED, err
+    assert seen == [signal.SIGUSR1]  # Tune was asked to stop its trials and save its state
+    assert f"interrupted: 0 of 2 trials finished; resume with --resume {out}" in err
+    assert sweep.read_settings(out)["seeds"] == [0, 1]  # what --resume reads back
+    assert not (out / ownership.LOCK_FILE).exists()
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == handlers
+    assert "TUNE_DISABLE_SIGINT_HANDLER" not in os.environ
+
+
+def test_a_fault_of_the_driver_is_one_line(tmp_path, capsys, monkeypatch):
+    sweep_without_ray(monkeypatch)
+    out = tmp_path / "s"
+    real_fsync = os.fsync
+
+    def fsync(fd: int) -> None:
+        if os.readlink(f"/proc/self/fd/{fd}").split("/")[-1].startswith(".results.json"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    code = cli.run(sweep.main, sweep.PROG, ["--seeds", "1", "--set", *TINY, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_FAULT, err
+    assert err == (
+        f"{sweep.PROG}: error: {out / sweep.RESULTS_FILE}: No space left on device (ENOSPC); "
+        "files written before are kept\n"
+    )
+    assert sweep.read_settings(out)["seeds"] == [0]  # written before: intact
+    assert sorted(p.name for p in out.iterdir()) == [sweep.SETTINGS_FILE]  # no partial file
+
+
+def test_sweep_entry_point_is_one_line_without_traceback(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run(
+        [sys.executable, "-m", "agents.sweep", "--num-cpus", "0", "--out", str(tmp_path / "s")],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "--num-cpus" in proc.stderr and "usage:" not in proc.stderr
+
+
+def test_ctrl_c_before_tune_runs_exits_130_and_the_sweep_resumes(tmp_path, capsys, monkeypatch):
+    """While Ray starts (no Tune to ask yet) Ctrl-C ends the sweep at once; sweep.json is
+    written, so --resume starts its trials (Tune saved no state: afresh)."""
+    sweep_without_ray(monkeypatch)
+
+    def connect(*args):
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(sweep, "connect", connect)
+    out = tmp_path / "s"
+    code = cli.run(sweep.main, sweep.PROG, ["--seeds", "1", "--set", *TINY, "--out", str(out)])
+    assert code == cli.EXIT_INTERRUPTED
+    assert capsys.readouterr().err == f"{sweep.PROG}: interrupted\n"
+    resumed = []
+    monkeypatch.setattr(sweep, "connect", lambda *args: None)
+    monkeypatch.setattr(sweep, "run_tune", lambda s, d, resume: resumed.append(resume) or [])
+    assert cli.run(sweep.main, sweep.PROG, ["--resume", str(out)]) == 1  # no trial finished here
+    assert resumed == [True]

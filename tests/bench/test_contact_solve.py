@@ -8,6 +8,7 @@ import pytest
 
 import rigid_env.envs  # noqa: F401  (registers the envs)
 from rigid_env.bench import contact_solve
+from rigid_env.cli import UsageError
 
 ACTION = np.array([0.3, -0.2, 0.1], dtype=np.float32)
 
@@ -45,5 +46,5 @@ def test_policy_option_loads_a_saved_model_and_names_it(tmp_path, capsys):
     contact_solve.main(["--rollout", "boxlanding", "--episodes", "1", "--policy", str(path)])
     line = capsys.readouterr().out
     assert f"policy {path}" in line and "contact steps" in line
-    with pytest.raises(SystemExit, match="--policy: no such file"):
+    with pytest.raises(UsageError, match="--policy: no such file"):
         contact_solve.main(["--rollout", "boxlanding", "--policy", str(tmp_path / "none.zip")])

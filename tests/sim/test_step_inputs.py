@@ -103,3 +103,66 @@ def test_any_memory_layout_steps_as_a_contiguous_state_does():
                 assert np.array_equal(g, w), kind
             for a, s in zip(arrays, saved, strict=True):
                 assert np.array_equal(a, s), kind
+
+
+# --- read-outs and constructors refuse what step refuses (issue 29) -----------------------------
+
+READ_OUTS = ("kinetic_energy", "potential_energy", "energy", "linear_momentum", "angular_momentum")
+
+
+@pytest.mark.parametrize(
+    "field", ["position", "orientation", "linear_velocity", "angular_velocity"]
+)
+def test_read_outs_raise_what_step_raises_for_a_non_finite_state(field):
+    """A state ``step`` rejects gives the same ValueError from every read-out, not NaN; the
+    finite batch it was made from reads as finite figures."""
+    scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 2.0), 0.01, gravity=(0, 0, -9.8))
+    good = scene.initial_state(
+        position=(0.1, 0.2, 0.3), linear_velocity=(1.0, 0.0, 0.0),
+        angular_velocity=(0.3, 3.0, 0.6), batch_shape=(2,),
+    )  # fmt: skip
+    for value in (np.nan, np.inf):
+        arrays = dict(zip(sim.scene.STATE_FIELDS, (a.copy() for a in good.arrays()), strict=True))
+        arrays[field][1, 0, 0] = value
+        bad = sim.State(**arrays)
+        with pytest.raises(ValueError) as stepped:
+            scene.step(bad)
+        assert field in str(stepped.value)
+        for name in READ_OUTS:
+            with pytest.raises(ValueError) as read:
+                getattr(scene, name)(bad)
+            assert str(read.value) == str(stepped.value), name
+            assert np.all(np.isfinite(getattr(scene, name)(good))), name
+
+
+@pytest.mark.parametrize(
+    "center, message",
+    [
+        ((np.nan, 0.0, 0.0), "center_of_mass must be finite"),
+        ((0.0, np.inf, 0.0), "center_of_mass must be finite"),
+        ((1.0, 2.0), "center_of_mass must have trailing shape"),
+        ([[1.0, 2.0, 3.0]], "center_of_mass must be a 3-vector"),
+        ("middle", "center_of_mass must be a numeric array"),
+    ],
+)
+def test_body_refuses_a_centre_of_mass_that_is_not_a_finite_3_vector(center, message):
+    with pytest.raises(ValueError, match=message):
+        sim.Body(1.0, np.eye(3), None, center)
+    body = sim.Body(1.0, np.eye(3), None, [0.1, 0.2, 0.3])
+    assert body.center_of_mass.shape == (3,) and not body.center_of_mass.flags.writeable
+
+
+@pytest.mark.parametrize("batch_shape", [(2.5,), (2.0,), 2.5, (2, "3"), [[2, 3]], ("2",)])
+def test_initial_state_refuses_a_batch_shape_that_is_not_integers(batch_shape):
+    scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 2.0), 0.01)
+    with pytest.raises(ValueError, match="batch_shape"):
+        scene.initial_state(batch_shape=batch_shape)
+
+
+@pytest.mark.parametrize(
+    "batch_shape", [(), (3,), (2, 3), 4, [2, 3], (np.int64(2),), np.array([2])]
+)
+def test_initial_state_takes_integer_batch_shapes(batch_shape):
+    scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 2.0), 0.01)
+    want = tuple(np.atleast_1d(batch_shape).tolist()) if np.size(batch_shape) else ()
+    assert scene.initial_state(batch_shape=batch_shape).position.shape == (*want, 1, 3)
