@@ -201,6 +201,7 @@ def report_of(tolerance: float):
             newton, warmed = row[NEWTON], int(row[WARMED] > 0)
             capped, unpaid = int(row[CAPPED] > 0), row[UNPAID_ENERGY]
             touched = np.array([row[TOUCHED] > 0])
+            capped_mask = np.array([capped > 0])
         else:
             engaged = int(np.count_nonzero(columns[:, ENGAGED]))
             peak = columns.max(axis=0)
@@ -209,6 +210,7 @@ def report_of(tolerance: float):
             capped = int(np.count_nonzero(columns[:, CAPPED]))
             warmed = int(np.count_nonzero(columns[:, WARMED]))
             touched = columns[:, TOUCHED] > 0
+            capped_mask = columns[:, CAPPED] > 0
         if counts is not None:  # several steps: the most of any one step, as numpy merges
             engaged, capped, warmed = (int(m) for m in counts.max(axis=0))
         # ContactReport(...) without the frozen dataclass's eight object.__setattr__ calls
@@ -226,6 +228,7 @@ def report_of(tolerance: float):
             tolerance=tolerance,
             unpaid_energy=float(unpaid),
             touched=touched,
+            capped_mask=capped_mask,
         )
         if capped:
             # warn_capped ← report ← Driver.report ← Scene._compiled_step ← Scene.step ← caller

@@ -61,7 +61,8 @@ class ContactReport:
     in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
     (N,) bool) whether a contact carried an impulse this step — a touch sensor that also sees
     a bounce which began and ended within the step (the positions at the step's ends may both
-    be clear of the ground).
+    be clear of the ground); ``capped_mask``: per batch element (flattened, (N,) bool) whether
+    its solve stopped at a cap this step (``capped`` counts them).
     """
 
     engaged: int = 0
@@ -73,6 +74,7 @@ class ContactReport:
     tolerance: float = 0.0
     unpaid_energy: float = 0.0
     touched: np.ndarray | None = None
+    capped_mask: np.ndarray | None = None
 
     @property
     def converged(self) -> bool:
@@ -189,7 +191,9 @@ class SolveContacts:
         size = ctx.x.reshape(-1, ctx.model.n_bodies, 3).shape[0]
         touched = np.zeros(size, bool)
         if len(idx) == 0:
-            ctx.report[REPORT_KEY] = ContactReport(tolerance=settings.tolerance, touched=touched)
+            ctx.report[REPORT_KEY] = ContactReport(
+                tolerance=settings.tolerance, touched=touched, capped_mask=np.zeros(size, bool)
+            )
             ctx.warm = None
             return
         rows = hits["rows"]
@@ -220,6 +224,8 @@ class SolveContacts:
         touched[idx] = np.any(impulse > 0, axis=-1) | np.any(u != u_in, axis=(-1, -2))
         impact_capped = hits.get("impact_capped")
         capped = ~converged if impact_capped is None else ~converged | impact_capped
+        capped_mask = np.zeros(size, bool)
+        capped_mask[idx] = capped
         events = hits.get("events")
         report = ContactReport(
             engaged=len(idx),
@@ -230,6 +236,7 @@ class SolveContacts:
             warm_started=0 if warm is None else int(np.sum(warm[1])),
             tolerance=settings.tolerance,
             touched=touched,
+            capped_mask=capped_mask,
         )
         ctx.report[REPORT_KEY] = report
         if report.capped:
