@@ -9,6 +9,7 @@ once per env instance with :data:`MESSAGE`, a :class:`ContactCapWarning`.
 
 from __future__ import annotations
 
+import sys
 import warnings
 from typing import Any
 
@@ -49,4 +50,12 @@ def capped_mask(report: Any) -> np.ndarray | None:
 
 
 def warn_capped(env: str) -> None:
-    warnings.warn(MESSAGE.format(env=env), ContactCapWarning, stacklevel=3)
+    """Warn with :data:`MESSAGE`, attributed to the first caller outside rigid_env and
+    Gymnasium (the user's ``step`` call, through any wrappers)."""
+    frame, level = sys._getframe(0), 1
+    while frame.f_back is not None and frame.f_globals.get("__name__", "").startswith(INTERNAL):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(MESSAGE.format(env=env), ContactCapWarning, stacklevel=level)
+
+
+INTERNAL = ("rigid_env.", "gymnasium.")  # the packages between a user's step and the warning

@@ -42,6 +42,8 @@ def test_capped_periods_are_counted_and_warned_once_per_env():
     assert kinds == [ContactCapWarning], kinds
     message = str(caught[0].message)
     assert "info['contact_capped']" in message and "adds no energy" in message
+    # Attributed to the caller of env.step (here run(), in this file), past the wrappers.
+    assert caught[0].filename == __file__
     # A new episode starts its count again; the same env does not warn again.
     env.reset(seed=1)
     infos, caught = run(env, 30)
