@@ -5,7 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from env_testing import make_vec, part
+from env_testing import assert_checkers_pass, make_vec, part
 
 from rigid_env.envs.box_landing import BoxLandingConfig
 from rigid_env.envs.reorient import ReorientConfig
@@ -182,3 +182,9 @@ def test_bad_observation_noise_is_refused(value, match):
     for config in (ReorientConfig, BoxLandingConfig):
         with pytest.raises(ValueError, match=match):
             config(observation_noise=value)
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_checkers_pass_with_noise_and_torque_limits(env_id):
+    # Gymnasium's checker resets twice with one seed and compares: noise is seeded too.
+    assert_checkers_pass(env_id, observation_noise=NOISE[env_id], torque_scale_range=(0.5, 1.5))
