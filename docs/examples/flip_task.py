@@ -1,4 +1,4 @@
-"""RigidEnv/Flip-v0: tip a box resting on the ground over onto a chosen face.
+"""MyTasks/Flip-v0: tip a box resting on the ground over onto a chosen face.
 
 BoxLanding's task with another start: the box rests on one face, the target is another, and the
 reaction wheels are strong enough (3 N m) to tip it over any edge (it takes m g d: 1.96 N m at
@@ -35,7 +35,7 @@ class FlipConfig(BoxLandingConfig):
 
 class FlipTask(BoxLandingTask):
     config_class = FlipConfig
-    env_name = "RigidEnv/Flip-v0"
+    env_name = "MyTasks/Flip-v0"
 
     def draw_start(self, rng: np.random.Generator) -> np.ndarray:
         return rng.random(3)  # [target face, start face offset from it, yaw]
@@ -64,7 +64,7 @@ class FlipVectorEnv(TaskVectorEnv):
 
 
 gym.register(
-    "RigidEnv/Flip-v0",
+    "MyTasks/Flip-v0",
     entry_point=FlipEnv,
     vector_entry_point=FlipVectorEnv,
     max_episode_steps=MAX_EPISODE_STEPS,

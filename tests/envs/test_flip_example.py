@@ -15,9 +15,9 @@ from rigid_env.envs.box_landing import FACES
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 sys.path.insert(0, str(EXAMPLES))
-import flip_task  # noqa: E402  (registers RigidEnv/Flip-v0)
+import flip_task  # noqa: E402  (registers MyTasks/Flip-v0)
 
-ID = "RigidEnv/Flip-v0"
+ID = "MyTasks/Flip-v0"
 
 
 def test_the_example_is_about_sixty_lines():
