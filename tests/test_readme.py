@@ -40,8 +40,9 @@ def test_readme_block_runs(index, tmp_path):
 
 
 def test_generated_tables_match_their_json():
-    # `python -m rigid_env.bench.readme` rewrites the marked tables from docs/results/*.json;
-    # --check fails when the README differs from what the JSON gives.
+    # `python -m rigid_env.bench.readme` rewrites the marked tables of the README and the docs'
+    # results page from docs/results/*.json; --check fails when a page differs from what the
+    # JSON gives.
     result = subprocess.run(
         [sys.executable, "-m", "rigid_env.bench.readme", "--check"],
         cwd=ROOT,
@@ -50,3 +51,23 @@ def test_generated_tables_match_their_json():
         timeout=120,
     )
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_the_pages_hold_their_generated_tables():
+    # --check passes trivially on a page whose markers were lost: each page must keep its blocks.
+    from rigid_env.bench.readme import BLOCK, PAGES, RENDERERS
+
+    found = {page.name: {m.group(2) for m in BLOCK.finditer(page.read_text())} for page in PAGES}
+    assert found["results.md"] == set(RENDERERS) - {"speed-targets", "compile"}
+    assert {"main-job", "speed-targets", "compile"} <= found["README.md"]
+
+
+def test_check_fails_on_a_stale_table(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("<!-- results: main-job -->\n| stale |\n<!-- end results -->\n")
+    run = [sys.executable, "-m", "rigid_env.bench.readme", str(page)]
+    check = subprocess.run([*run, "--check"], cwd=ROOT, capture_output=True, text=True)
+    assert check.returncode == 1 and "differ" in check.stdout
+    assert subprocess.run(run, cwd=ROOT, capture_output=True).returncode == 0
+    assert "RigidEnv/BoxLanding-v0" in page.read_text()
+    assert subprocess.run([*run, "--check"], cwd=ROOT).returncode == 0

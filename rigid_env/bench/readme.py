@@ -1,6 +1,7 @@
-"""``python -m rigid_env.bench.readme [--check]``: the README's result tables, from JSON.
+"""``python -m rigid_env.bench.readme [--check] [FILE ...]``: the result tables, from JSON.
 
-The README's measured tables are not typed by hand: each sits between two markers,
+The measured tables of the README (a few headline rows) and of the docs' results page
+(``docs/results.md``, every table) are not typed by hand: each sits between two markers,
 
     <!-- results: NAME -->
     ...generated...
@@ -8,8 +9,8 @@ The README's measured tables are not typed by hand: each sits between two marker
 
 and NAME picks a renderer below over a JSON file in ``docs/results/`` that a command wrote
 (``python -m rigid_env.bench all --out docs/results``, or a copy of the main job's
-``main_job.json``). ``--check`` rewrites nothing and exits 1 when the README differs from what
-the JSON gives (a test runs it, so a table cannot go stale against its JSON).
+``main_job.json``). ``--check`` rewrites nothing and exits 1 when a page differs from what the
+JSON gives (a test runs it, so a table cannot go stale against its JSON).
 
 A JSON file that carries ``rows`` and ``columns`` (``[header, key, format]`` triples, Python
 format specs) renders generically; the bench's files render through their modules' tables.
@@ -28,6 +29,7 @@ from .. import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
+PAGES = (ROOT / "README.md", ROOT / "docs" / "results.md")  # the files with generated tables
 BLOCK = re.compile(r"(<!-- results: (\S+) -->\n)(.*?)(<!-- end results -->)", re.S)
 
 
@@ -89,6 +91,28 @@ def speed_summary(doc: dict) -> str:
     )
 
 
+def speed_targets(doc: dict) -> str:
+    """The speed targets alone (the README's headline of the speed run)."""
+    from . import speed
+
+    return "\n".join(speed.targets(doc))
+
+
+def compile_summary(doc: dict) -> str:
+    """One sentence from the speed run's compile probe: a scene's first step in a fresh process,
+    cold (empty caches: it compiles) and cached, for the free body and the landing scene."""
+    runs = {(r["case"], r["run"]): r["first_step_s"] for r in doc["compile"]}
+
+    def both(case: str) -> str:
+        return f"{runs[(case, 'cold')]:.1f} s ({runs[(case, 'cached')]:.1f} s cached)"
+
+    return (
+        f"The first step of each new scene kind compiles its kernels: {both('landing')} for a "
+        f"box on the ground, {both('splitting')} for a free body, in the speed run's fresh "
+        "processes; the compiled code is cached on disk for later processes."
+    )
+
+
 def main_job_summary(doc: dict) -> str:
     """One line per env of a main job's record (``python -m agents``, ``OUT/main_job.json``):
     the training it did, where, and what the learned policy reached."""
@@ -117,6 +141,8 @@ RENDERERS: dict[str, tuple[str, Callable[[dict], str]]] = {
     "accuracy": ("accuracy.json", accuracy_summary),
     "stability": ("stability.json", stability_summary),
     "speed": ("speed.json", speed_summary),
+    "speed-targets": ("speed.json", speed_targets),
+    "compile": ("speed.json", compile_summary),
     # Copies of a main job's records: OUT/main_job.json and OUT/<env>/main_job.json.
     "main-job": ("main-job.json", main_job_summary),
     "main-job-reorient": ("main-job-reorient.json", rows_table),
@@ -130,7 +156,7 @@ def render(text: str, results: Path = RESULTS) -> str:
     def block(match: re.Match) -> str:
         name = match.group(2)
         if name not in RENDERERS:
-            raise ValueError(f"README: unknown results block {name!r}; known: {sorted(RENDERERS)}")
+            raise ValueError(f"unknown results block {name!r}; known: {sorted(RENDERERS)}")
         file, renderer = RENDERERS[name]
         doc = json.loads((results / file).read_text())
         return match.group(1) + renderer(doc).strip() + "\n" + match.group(4)
@@ -145,31 +171,38 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = cli.Parser(
         prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    parser.add_argument(
+        "files",
+        nargs="*",
+        type=Path,
+        default=list(PAGES),
+        help="default: README.md, docs/results.md",
+    )
     parser.add_argument("--results", type=Path, default=RESULTS)
-    parser.add_argument("--check", action="store_true", help="exit 1 if the README is stale")
+    parser.add_argument("--check", action="store_true", help="exit 1 if a page is stale")
     args = parser.parse_args(argv)
-    if not args.readme.is_file():
-        raise cli.UsageError(f"--readme: {args.readme} is not a file")
-    text = args.readme.read_text()
-    try:
-        new = render(text, args.results)
-    except (OSError, ValueError) as error:  # a missing or unreadable record, an unknown block
-        raise cli.UsageError(f"--results: cannot render the tables from {args.results}: "
-                             f"{type(error).__name__}: {error}") from None  # fmt: skip
-    if args.check:
-        if new != text:
-            print(
-                f"{args.readme}: generated tables differ from {args.results}; rerun without --check"
-            )
-            return 1
-        return 0
-    if new != text:
+    stale = []
+    for path in args.files:
+        if not path.is_file():
+            raise cli.UsageError(f"{path} is not a file")
+        text = path.read_text()
+        try:
+            new = render(text, args.results)
+        except (OSError, ValueError) as error:  # a missing or unreadable record, an unknown block
+            raise cli.UsageError(f"--results: cannot render the tables from {args.results}: "
+                                 f"{type(error).__name__}: {error}") from None  # fmt: skip
+        if new == text:
+            continue
+        if args.check:
+            stale.append(path)
+            continue
         from rigid_env.files import write_text
 
-        write_text(args.readme, new)
-        print(f"rewrote the generated tables of {args.readme}")
-    return 0
+        write_text(path, new)
+        print(f"rewrote the generated tables of {path}")
+    for path in stale:
+        print(f"{path}: generated tables differ from {args.results}; rerun without --check")
+    return 1 if stale else 0
 
 
 if __name__ == "__main__":

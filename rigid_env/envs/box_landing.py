@@ -91,6 +91,19 @@ so β is the tilt of body +z from world +z and the default (0, π) is uniform on
 velocity of magnitude uniform in ``spin_range`` (0 to 3 rad/s) about a uniform direction. The
 target face is ``target_face`` or, with ``"random"``, uniform over the six faces per episode.
 
+``reset(options=...)`` replaces parts of the drawn start (the draws are made all the same, so
+later episodes do not depend on the options); a vector env broadcasts each value over the
+sub-envs it resets (``options["reset_mask"]``), or takes one row per reset sub-env. Other keys,
+and values that are not these, raise ``ValueError`` naming ``options[key]``:
+
+| Key                    | Value                                                               |
+|------------------------|---------------------------------------------------------------------|
+| ``position``           | centre of mass (3,), m; at least the box's reach above the ground unless ``orientation`` is given too (then no corner deeper than ``contact_tolerance``) |
+| ``orientation``        | quaternion (x, y, z, w), body to world (normalised)                 |
+| ``linear_velocity``    | (3,) world frame, m/s                                               |
+| ``angular_velocity``   | (3,) world frame, rad/s                                             |
+| ``target_face``        | one of ``FACES`` or its index                                       |
+
 ## Episode End
 
 1. Termination: ``is_success`` (only with ``terminate_on_success=True``, the default).
@@ -103,7 +116,17 @@ Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, 
 (corners touching, int), ``touchdowns`` (int), ``bounces`` (touchdowns after the first, int),
 ``down_face`` (index into ``FACES`` = ("+x", "-x", "+y", "-y", "+z", "-z") of the face now
 facing the ground, int), ``target_face`` (index, int), ``energy`` (kinetic + gravitational
-m g z, J), the reward terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
+m g z, J), ``contact_capped`` (the action periods of this episode in which a contact solve
+stopped at its cap instead of converging, int; see below), the reward terms ``reward_*`` (0 at a
+reset) and ``is_success`` (``bool``). With ``torque_scale_range``: ``torque_limit`` (the
+episode's, (3,), N m); with ``observation_noise``: ``observation_clean`` (the observation
+without noise).
+
+A capped solve keeps the solver's last iterate for that physics step: contact impulses that
+meet the friction and no-penetration conditions only approximately, and no energy gained. It is
+rare with the default settings and harmless for training. The env counts it instead of passing
+on the simulator's ``ContactSolverWarning``, and warns once per env instance
+(``rigid_env.envs.contact_caps.ContactCapWarning``).
 
 ## Arguments
 
@@ -138,21 +161,39 @@ m g z, J), the reward terms ``reward_*`` (0 at a reset) and ``is_success`` (``bo
 | ``face_weight``, ``spin_weight``, ``bounce_weight``, ``action_weight``, ``success_bonus`` | 1, 0.05, 0.5, 0.01, 10 | reward terms (table above) |
 | ``spin_scale``           | ``None``         | observation scale of Ω, rad/s; ``None``: ``spin_range`` high (at least 1 rad/s) |
 | ``backend``              | ``None``         | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
-| ``contact_solver``       | ``CONTACT_SOLVER`` | the contact solve's ``rigid_env.sim.SolverSettings``; the default warm-starts an action's physics steps after its first from the previous step's impulses: the same tolerance, ~1.4× cheaper physics on this task than ``SolverSettings()`` |
+| ``contact_solver``       | ``CONTACT_SOLVER`` | the contact solve's ``rigid_env.sim.SolverSettings``; the default warm-starts an action's physics steps after its first from the previous step's impulses: the same tolerance as ``SolverSettings()``, for less work |
+| ``torque_scale_range``   | ``None``         | ``(low, high)``: each episode's torque limit is ``max_torque`` × s, s uniform in it (one s for the three axes), drawn at the reset |
+| ``observation_noise``    | ``None``         | ``{part: std}``: Gaussian noise added to those observation parts (std in the part's units, table above), clipped to the observation space; ``info["observation_clean"]`` keeps the observation without it |
 | ``render_mode``          | ``None``         | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
+| ``width``, ``height``    | ``480``, ``480`` | frame size, pixels                                        |
+| ``default_camera_config`` | ``None``        | a dict of ``distance`` (m), ``azimuth`` and ``elevation`` (degrees) and ``lookat`` (a point, m), as in MuJoCo's v5 envs; keys not given keep the default camera, which follows the box (no ``lookat``) from 8 of its reaches away, azimuth 125°, elevation −20° |
+
+Bounds: ``dt`` ≤ 1 s, ``frame_skip`` ≤ 10 000, ``max_torque`` (and its randomised value) ≤
+10⁴ N m, ``spin_range``, ``spin_scale`` and ``spin_threshold`` ≤ 1000 rad/s,
+``height_range`` ≤ 10 m (the altimeter's range), the velocity ranges and ``speed_threshold``
+within ±100 m/s, ``friction`` ≤ 10, ``face_threshold`` ≤ π, ``contact_tolerance`` ≤ 1 m,
+``hold_time`` ≤ 10⁴ s, every weight and the bonus ≤ 10⁶, ``mass`` ≤ 10⁶ kg, noise std ≤ 10,
+``width`` and ``height`` ≤ 4096. Beyond them an episode's numbers stop meaning anything (a torque
+of 1e300 N m gave rewards of −inf), so they are refused.
+
+Randomisation draws from the env's generator once per episode, after the start state, so it is
+reproducible from the reset seed (a vector sub-env ``i`` seeded ``s + i`` as before), and with
+none configured nothing more is drawn: the default episodes are unchanged.
 
 Why these defaults: the box is the simulator's landing scene. A fall of 1–2 m takes 0.45–0.64 s
 before the first touchdown; at 1 N m the wheels turn the box by π about its largest axis in
 about 0.6 s (bang-bang, 2 √(π I / τ)), so turning the target face down in flight is feasible from
 most throws but not from all, and braking the initial spin takes part of that time (the analytic
 controller, ``python -m agents.evaluate --env RigidEnv/BoxLanding-v0 --policy analytic``,
-succeeds in 96 % of the 200 seeded evaluation episodes; zero torque in about 1 of 30). Resting,
+succeeds in most seeded evaluation episodes, zero torque in few; the docs' results page has the
+figures). Resting,
 the wheels tip the box over an edge only if τ > m g d, d the horizontal distance from the
 centre of mass to that edge: 0.98 N m off the ±y and ±z faces about their 0.1 m edges, so a bad
 policy can topple a box standing on its target, but 1.96 N m onto the −z face (d = 0.2 m): with
 the default target, a box at rest on a wrong face never reaches the target face.
 
-The arguments other than ``render_mode`` form a :class:`BoxLandingConfig` (a frozen dataclass,
+The arguments other than ``render_mode``, ``width``, ``height`` and
+``default_camera_config`` form a :class:`BoxLandingConfig` (a frozen dataclass,
 validated when built); ``make(..., config=BoxLandingConfig(...))`` passes one whole.
 Bad values raise ``ValueError`` naming the argument. The vector env also takes ``num_envs`` and
 ``max_episode_steps``; seeded with ``s`` its sub-env ``i`` uses seed ``s + i`` and equals a single
@@ -176,11 +217,26 @@ import numpy as np
 from .. import sim
 from ..sim.rotation import quat_from_axis_angle, quat_multiply
 from ..sim.scenes import LANDING_HALF_EXTENTS
-from . import kernels
+from . import contact_caps, kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, STATE_FIELDS, HoldTask, HoldTaskConfig
-from .rendering import Camera, Frame, Item, Mesh, View
-from .validation import choice, nonnegative_scalar, positive_scalar, scalar_range, unit_interval
+from .hold_task import (
+    MAX_SPIN,
+    OBS_LIMIT,
+    STATE_FIELDS,
+    Bounds,
+    HoldTask,
+    HoldTaskConfig,
+    weight,
+)
+from .rendering import CameraConfig, Frame, Item, Mesh, View
+from .validation import (
+    at_most,
+    choice,
+    nonnegative_scalar,
+    positive_scalar,
+    scalar_range,
+    unit_interval,
+)
 
 MAX_EPISODE_STEPS = 120
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
@@ -190,10 +246,29 @@ FACE_NORMALS = np.array(
 GRAVITY = 9.81  # m/s², down
 VELOCITY_SCALE = 5.0  # m/s: the observed linear velocity is v / VELOCITY_SCALE
 HEIGHT_LIMIT = 10.0  # m: observed height and clearance are clipped to [0, this]
+MAX_SPEED = 100.0  # m/s: the bound of the initial velocity ranges and speed_threshold
+MAX_FRICTION = 10.0
+MAX_CONTACT_TOLERANCE = 1.0  # m
+OBSERVATION_BOUNDS: dict[str, Bounds] = {
+    "height": (0.0, HEIGHT_LIMIT),
+    "clearance": (0.0, HEIGHT_LIMIT),
+    "linear_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
+    "up": ((-1.0,) * 3, (1.0,) * 3),
+    "angular_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
+    "target_normal": ((-1.0,) * 3, (1.0,) * 3),
+    "corner_contacts": ((0.0,) * 8, (1.0,) * 8),
+    "previous_action": ((-1.0,) * 3, (1.0,) * 3),
+}
 
 
 def _lerp(bounds: tuple[float, float], u: np.ndarray) -> np.ndarray:
     return bounds[0] + (bounds[1] - bounds[0]) * u
+
+
+def box_reach(body: sim.Body) -> float:
+    """The farthest corner of the body's box from its centre of mass, m."""
+    corners = np.array(body.shape.vertices)
+    return float(np.max(np.linalg.norm(corners, axis=1)))
 
 
 def _face_index(value: Any, name: str = "target_face") -> np.ndarray | int:
@@ -206,14 +281,9 @@ def _face_index(value: Any, name: str = "target_face") -> np.ndarray | int:
     return arr.astype(np.intp)
 
 
-# The contact solve of this task's scene (see ``contact_solver`` in the module docstring). On
-# BoxLanding's rollout states, 8 physics steps per call (512 envs, random actions, replayed
-# through the compiled step), µs per element and physics step: SolverSettings() 6.4,
-# warm_start 4.5, with the same capped solves (0.3 % of the calls with contacts); on a trained
-# PPO policy's states 6.2 and 5.5. Going on from a failed warm probe instead of the cold start
-# gave 4.2 and 5.2, but 10-18 % more capped solves; with that, newton_after 3 gave 3.85
-# against 4.2, but the backends' answers on the 8 tumbling boxes of
-# tests/sim/test_compiled_contacts.py then differ by 4× the bound derived there: neither taken.
+# The contact solve of this task's scene (see ``contact_solver`` in the module docstring):
+# warm-started, as an action's physics steps start where the previous one ended; it converges
+# to the same tolerance as a cold solve, with no more capped solves, for less work.
 CONTACT_SOLVER = sim.SolverSettings(warm_start=True)
 
 
@@ -225,6 +295,7 @@ class BoxLandingConfig(HoldTaskConfig):
     default_mass: ClassVar[float] = 1.0
     body_shapes: ClassVar[tuple[type, ...] | None] = (sim.Box,)
     integrators: ClassVar[tuple[str, ...]] = sim.CONTACT_CAPABLE
+    observation_parts: ClassVar[tuple[str, ...]] = tuple(OBSERVATION_BOUNDS)
 
     integrator: str = sim.CONTACT_INTEGRATOR
     dt: float = 1 / 240
@@ -254,10 +325,10 @@ class BoxLandingConfig(HoldTaskConfig):
             object.__setattr__(self, name, value)
 
         put("restitution", unit_interval(self.restitution, "restitution"))
-        put("friction", nonnegative_scalar(self.friction, "friction"))
-        corners = np.array(self.rigid_body.shape.vertices)
-        reach = float(np.max(np.linalg.norm(corners, axis=1)))
-        put("height_range", scalar_range(self.height_range, "height_range"))
+        friction = nonnegative_scalar(self.friction, "friction")
+        put("friction", at_most(friction, "friction", MAX_FRICTION))
+        reach = box_reach(self.rigid_body)
+        put("height_range", scalar_range(self.height_range, "height_range", maximum=HEIGHT_LIMIT))
         if self.height_range[0] <= reach:
             raise ValueError(
                 f"height_range must start above the box's reach {reach:.3f} m (its corners "
@@ -265,21 +336,29 @@ class BoxLandingConfig(HoldTaskConfig):
             )
         put(
             "vertical_velocity_range",
-            scalar_range(self.vertical_velocity_range, "vertical_velocity_range", -math.inf),
+            scalar_range(
+                self.vertical_velocity_range, "vertical_velocity_range", -MAX_SPEED, MAX_SPEED
+            ),
         )
         put(
             "horizontal_speed_range",
-            scalar_range(self.horizontal_speed_range, "horizontal_speed_range"),
+            scalar_range(self.horizontal_speed_range, "horizontal_speed_range", maximum=MAX_SPEED),
         )
         put("tilt_range", scalar_range(self.tilt_range, "tilt_range"))
         if self.tilt_range[1] > math.pi:
             raise ValueError(f"tilt_range must lie within [0, π], got {self.tilt_range!r}")
         if self.target_face != "random":
             put("target_face", FACES[int(_face_index(self.target_face))])
-        for name in ("face_threshold", "speed_threshold", "spin_threshold", "contact_tolerance"):
-            put(name, positive_scalar(getattr(self, name), name))
+        bounds = {
+            "face_threshold": (math.pi, " rad"),
+            "speed_threshold": (MAX_SPEED, " m/s"),
+            "spin_threshold": (MAX_SPIN, " rad/s"),
+            "contact_tolerance": (MAX_CONTACT_TOLERANCE, " m"),
+        }
+        for name, (maximum, unit) in bounds.items():
+            put(name, at_most(positive_scalar(getattr(self, name), name), name, maximum, unit))
         for name in ("face_weight", "bounce_weight"):
-            put(name, nonnegative_scalar(getattr(self, name), name))
+            put(name, weight(getattr(self, name), name))
         if not isinstance(self.contact_solver, sim.SolverSettings):
             raise ValueError(
                 f"contact_solver must be a rigid_env.sim.SolverSettings, got {self.contact_solver!r}"
@@ -291,22 +370,16 @@ class BoxLandingTask(HoldTask):
 
     config_class = BoxLandingConfig
     config: BoxLandingConfig
-    observation_bounds = {
-        "height": (0.0, HEIGHT_LIMIT),
-        "clearance": (0.0, HEIGHT_LIMIT),
-        "linear_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
-        "up": ((-1.0,) * 3, (1.0,) * 3),
-        "angular_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
-        "target_normal": ((-1.0,) * 3, (1.0,) * 3),
-        "corner_contacts": ((0.0,) * 8, (1.0,) * 8),
-        "previous_action": ((-1.0,) * 3, (1.0,) * 3),
-    }
+    observation_bounds = OBSERVATION_BOUNDS
     task_reward_terms = ("reward_angle", "reward_bounce")
+    start_options = (*STATE_FIELDS, "target_face")
+    env_name = "RigidEnv/BoxLanding-v0"
 
     def __init__(self, num_envs: int, config: BoxLandingConfig | None = None, **kwargs: Any):
         super().__init__(num_envs, config, **kwargs)
         cfg = self.config
         self.corners = np.array(self.body.shape.vertices)  # (8, 3) body axes
+        self.reach = box_reach(self.body)
         self.random_face = cfg.target_face == "random"
         self.mesh = Mesh.from_shape(self.body.shape)
 
@@ -317,6 +390,8 @@ class BoxLandingTask(HoldTask):
         self.face = np.full(n, FACES.index("-z" if self.random_face else str(cfg.target_face)))
         self._face_normal = FACE_NORMALS[self.face]
         self.touchdowns = np.zeros(n, dtype=np.int64)
+        self.contact_capped = np.zeros(n, dtype=np.int64)  # capped action periods per episode
+        self.warned_capped = False  # the once-per-env ContactCapWarning
         self._no_contact_report = np.zeros(n, dtype=bool)  # touched, for a scene without one
         self._touched = self._no_contact_report
         self._params = np.array(  # what landing_measure reads, in its order
@@ -353,12 +428,12 @@ class BoxLandingTask(HoldTask):
 
     # --- resets ---------------------------------------------------------------------------------
 
-    def draw(self, rng: np.random.Generator) -> np.ndarray:
+    def draw_start(self, rng: np.random.Generator) -> np.ndarray:
         # Uniforms: [height, v_z, horizontal speed, its direction, spin, cos tilt, α, γ, face];
         # Gaussians: [spin direction (3)].
         return np.concatenate((rng.random(9), rng.standard_normal(3)))
 
-    def reset_envs(self, index: np.ndarray, draws: np.ndarray) -> None:
+    def reset_start(self, index: np.ndarray, draws: np.ndarray) -> None:
         cfg = self.config
         u, g = draws[:, :9], draws[:, 9:]
         k = len(index)
@@ -405,18 +480,63 @@ class BoxLandingTask(HoldTask):
         """Hand-built state for envs ``index``: centre of mass (m), orientation (x, y, z, w),
         world linear (m/s) and angular (rad/s) velocity, target face (name or index); each
         broadcasts over ``index``; ``None`` keeps the current value. Starts a new episode:
-        hold timer, reward terms, touchdown count and previous action are cleared, and a box
-        placed touching the ground does not count a touchdown."""
+        hold timer, reward terms, touchdown and capped-solve counts and previous action are
+        cleared, and a box placed touching the ground does not count a touchdown. A box whose
+        lowest corner would lie deeper than ``contact_tolerance`` in the ground is refused."""
         index = np.asarray(index, dtype=np.intp)
         values = (position, orientation, linear_velocity, angular_velocity)
         self._set_state(index, values, target_face, trusted=False)
+
+    def _check_value(self, name: str, value: Any, k: int, label: str) -> np.ndarray:
+        if name != "target_face":
+            return super()._check_value(name, value, k, label)
+        try:
+            return np.array(np.broadcast_to(_face_index(value, label), (k,)))
+        except ValueError as e:
+            if label in str(e):
+                raise
+            raise ValueError(f"{label} must broadcast to ({k},)") from None
+
+    def check_start(self, options: Any, k: int) -> dict[str, Any]:
+        """The reset options checked; a ``position`` without an ``orientation`` (which the
+        reset draws) must be at least the box's reach above the ground."""
+        start = super().check_start(options, k)
+        if "position" in start and "orientation" not in start:
+            low = float(np.min(start["position"][:, 2]))
+            if low < self.reach:
+                raise ValueError(
+                    f"options['position'] must be at least the box's reach {self.reach:.3f} m "
+                    f"above the ground when the orientation is drawn (or give "
+                    f"options['orientation'] too), got a height of {low!r} m"
+                )
+        elif "position" in start:
+            self._check_above_ground(start["position"], start["orientation"], "options")
+        return start
+
+    def _check_above_ground(
+        self, position: np.ndarray, orientation: np.ndarray, label: str
+    ) -> None:
+        """``ValueError`` naming ``label`` if a pose ((k, 3) positions, (k, 4) unit quaternions)
+        puts a corner of the box deeper in the ground than ``contact_tolerance``."""
+        rot = kernels.rotation_matrices(np.ascontiguousarray(orientation))
+        # A corner's height is z + (R c)_z: R's last row dotted with the corner.
+        low = position[:, 2] + np.min(rot[:, 2, :] @ self.corners.T, axis=1)
+        if np.any(low < -self.config.contact_tolerance):
+            raise ValueError(
+                f"{label}: the position and orientation put a corner of the box "
+                f"{-float(np.min(low)):.3g} m deep in the ground (at most contact_tolerance "
+                f"= {self.config.contact_tolerance:g} m)"
+            )
 
     def _set_state(
         self, index: np.ndarray, values: tuple[Any, ...], target_face: Any, trusted: bool
     ) -> None:
         """:meth:`set_state` with ``values`` in ``STATE_FIELDS`` order; ``trusted``: they come
-        from :meth:`reset_envs` (no checks, see ``HoldTask._edited_state``)."""
+        from :meth:`reset_start` (no checks, see ``HoldTask._edited_state``)."""
         state = self._edited_state(index, trusted, **dict(zip(STATE_FIELDS, values, strict=True)))
+        if not trusted and (values[0] is not None or values[1] is not None):
+            pose = (state.position[index, 0], state.orientation[index, 0])
+            self._check_above_ground(*pose, "position")
         if target_face is not None:
             face = _face_index(target_face)
             self.face[index] = np.broadcast_to(face, (len(index),))
@@ -424,6 +544,7 @@ class BoxLandingTask(HoldTask):
         self.state = state
         self._start_episode(index)
         self.touchdowns[index] = 0
+        self.contact_capped[index] = 0
         self._measure(index)
         self.touching[index] = self._clearance[index] < self.config.contact_tolerance
 
@@ -433,13 +554,21 @@ class BoxLandingTask(HoldTask):
         """Step the physics for one action (``frame_skip`` steps, the torque fixed in the body
         frame, one simulator call) and keep which envs' contacts carried an impulse during
         the period (``ContactReport.touched``, merged over its physics steps: a bounce that
-        begins and ends within one physics step counts) for :meth:`_step_events`."""
-        self.state = self.scene.step(
-            self.state, body_torque=torque[:, None, :], steps=self.frame_skip
+        begins and ends within one physics step counts) for :meth:`_step_events`. A period
+        with a capped contact solve is counted per env (``contact_capped``) and warned once
+        (:mod:`~rigid_env.envs.contact_caps`)."""
+        self.state = contact_caps.step_quietly(
+            self.scene, self.state, body_torque=torque[:, None, :], steps=self.frame_skip
         )
         report = self.scene.report.get("contacts")
         touched = None if report is None else report.touched
         self._touched = self._no_contact_report if touched is None else touched
+        capped = contact_caps.capped_mask(report)
+        if capped is not None:
+            self.contact_capped += capped
+            if not self.warned_capped:
+                self.warned_capped = True
+                contact_caps.warn_capped(self.env_name)
 
     def _step_events(self) -> None:
         """Count a touchdown when the box touched the ground during this action period (a
@@ -503,6 +632,7 @@ class BoxLandingTask(HoldTask):
             "down_face": self._ints[:, 1].copy(),
             "target_face": np.array(self.face),
             "energy": meas[:, 8].copy(),
+            "contact_capped": self.contact_capped.copy(),
         }
 
     def _task_single_info(self) -> dict[str, Any]:
@@ -521,21 +651,23 @@ class BoxLandingTask(HoldTask):
             "down_face": down_face,
             "target_face": self.face.item(),
             "energy": energy,
+            "contact_capped": self.contact_capped.item(),
         }
 
     # --- rendering ------------------------------------------------------------------------------
 
     def view(self) -> View:
-        # Frames the throw: the ground around the drop point and the highest start in view.
-        top = self.config.height_range[1]
-        look_at = np.array([0.0, 0.0, 0.5 * top])
-        eye = look_at + (1.9 * top + 0.4) * np.array([0.55, -0.8, 0.24])
-        return View(
-            Camera(tuple(eye), look_at=tuple(look_at), fov_deg=40.0),
-            ground=True,
-            ground_extent=2.0 + top,
-            ground_cell=0.25,
+        return View(ground=True, ground_extent=2.0 + self.config.height_range[1], ground_cell=0.25)
+
+    def default_camera(self) -> CameraConfig:
+        """A camera that follows the box (``lookat`` unset) from a little above, at a
+        distance of 8 of the box's reach: the box fills about a third of the frame's height."""
+        return CameraConfig(
+            distance=8.0 * self.reach, azimuth=125.0, elevation=-20.0, lookat=None, fov_deg=40.0
         )
+
+    def camera_target(self, i: int) -> np.ndarray:
+        return np.array(self.state.position[i, 0])
 
     def _target_pose(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """The nearest resting pose on the target face: the box turned by the shortest rotation

@@ -16,32 +16,57 @@ Each reset draws a fixed-length vector of random numbers per env (:meth:`Batched
 only per-env Python loop, run only for the envs being reset) and turns the stacked draws into
 states in one batched expression (:meth:`BatchedTask.reset_envs`).
 
+Randomness after a reset comes from the same generator, in the same order: a task with
+observation noise draws each observation's noise from it (:mod:`~rigid_env.envs.noise`), after
+the reset's draws at a reset, so the equality holds with noise too.
+
 The vector env follows Gymnasium 1.x ``AutoresetMode.NEXT_STEP``: the step after an episode ends
 resets that sub-env, ignores its action and returns its reset observation and info with reward 0
 and both flags ``False``. It truncates itself after ``max_episode_steps`` (``make_vec`` adds no
-``TimeLimit``).
+``TimeLimit``; the env's ``spec.max_episode_steps`` says this limit).
+
+``reset(options=...)`` takes a dict of the task's start keys (``start_options``: parts of the
+start state, each replacing what the reset drew; the draws are made all the same, so the
+generator's stream does not depend on the options) and, for the vector env, ``reset_mask``.
+Anything else raises ``ValueError`` naming it, before the env changes.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .rendering import Frame, Renderer, View
+from .display import Display
+from .noise import noisy_observation
+from .rendering import CameraConfig, Frame, View
 from .validation import action_batch, choice, positive_int
 
 
 def _is_seed(value: Any) -> bool:
     """A seed Gymnasium's ``seeding.np_random`` accepts: an int >= 0 (not a bool)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and bool(value >= 0)
+
+
+def _options(options: Any, known: Sequence[str]) -> dict[str, Any]:
+    """``options`` as a dict whose keys are all in ``known``; else a ``ValueError`` naming it."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"options must be a dict or None, got {options!r}")
+    for key in options:
+        if key not in known:
+            raise ValueError(f"options: unknown key {key!r}; this env's reset takes {tuple(known)}")
+    return dict(options)
 
 
 class BatchedTask(ABC):
@@ -57,6 +82,11 @@ class BatchedTask(ABC):
     single_observation_space: spaces.Box
     single_action_space: spaces.Box
     render_fps: float
+    # Observation noise: the flat observation's entries that get noise and their standard
+    # deviations (None: none); :func:`noise.noisy_observation` applies them.
+    noise_index: np.ndarray | None = None
+    noise_std: np.ndarray | None = None
+    start_options: tuple[str, ...] = ()  # the keys reset(options=...) takes
 
     @abstractmethod
     def build_scene(self) -> Any:
@@ -73,6 +103,14 @@ class BatchedTask(ABC):
     @abstractmethod
     def set_state(self, index: Any, *args: Any, **state: Any) -> None:
         """Put envs ``index`` in a hand-built state (task-specific keywords), as at a reset."""
+
+    def check_start(self, options: Mapping[str, Any], k: int) -> dict[str, Any]:
+        """The ``reset`` options (keys of ``start_options``) for ``k`` envs, checked (a
+        ``ValueError`` names ``options[key]``) before anything changes; :meth:`set_state`
+        takes what this returns. Tasks with start options override it."""
+        if options:
+            raise ValueError(f"options: this env's reset takes no start keys, got {options!r}")
+        return {}
 
     @abstractmethod
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -93,7 +131,15 @@ class BatchedTask(ABC):
 
     @abstractmethod
     def view(self) -> View:
-        """Camera and scenery (ground or not) for the renderer."""
+        """Scenery (ground or not) for the renderer; the env sets its size."""
+
+    @abstractmethod
+    def default_camera(self) -> CameraConfig:
+        """The camera of ``default_camera_config``'s keys that the user does not give."""
+
+    def camera_target(self, i: int) -> np.ndarray:
+        """The point a camera without ``lookat`` follows for env ``i``: the origin by default."""
+        return np.zeros(3)
 
     @abstractmethod
     def frame(self, i: int) -> Frame:
@@ -117,30 +163,41 @@ def _single_info(info: dict[str, np.ndarray]) -> dict[str, Any]:
 class TaskEnv(gym.Env):
     """A Gymnasium ``Env`` over a :class:`BatchedTask` with a batch of one.
 
-    Subclasses set ``task_class``; keyword arguments other than ``render_mode`` go to it.
+    Subclasses set ``task_class``; keyword arguments other than ``render_mode``, ``width``,
+    ``height`` and ``default_camera_config`` (see :mod:`~rigid_env.envs.display`) go to it.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
     task_class: Callable[..., BatchedTask]
 
-    def __init__(self, render_mode: str | None = None, **task_kwargs: Any):
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        width: int | None = None,
+        height: int | None = None,
+        default_camera_config: Mapping[str, Any] | None = None,
+        **task_kwargs: Any,
+    ):
         self.render_mode = choice(
             render_mode, "render_mode", (None, *self.metadata["render_modes"])
         )
         self.task = self.task_class(1, **task_kwargs)
+        self._display = Display(self.task, self.render_mode, width, height, default_camera_config)
         self.observation_space = self.task.single_observation_space
         self.action_space = self.task.single_action_space
         self.observation_structure = dict(self.task.observation_structure)
         self.metadata = {**type(self).metadata, "render_fps": self.task.render_fps}
         self._action_shape = (1, *self.action_space.shape)
         self._index = np.zeros(1, dtype=np.intp)
-        self._renderer: Renderer | None = None
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        start = self.task.check_start(_options(options, self.task.start_options), 1)
         super().reset(seed=seed)
         self.task.reset_envs(self._index, self.task.draw(self.np_random)[None])
+        if start:
+            self.task.set_state(self._index, **start)
         return self._observe_and_render()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -149,8 +206,18 @@ class TaskEnv(gym.Env):
         obs, info = self._observe_and_render()
         return obs, float(reward[0]), bool(terminated[0]), False, info
 
+    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
+        """The observation (noisy if the task has noise: then the clean one is in ``info``)."""
+        task = self.task
+        obs, info = task.observation(), task.single_info()
+        if task.noise_index is not None:
+            noise = self.np_random.standard_normal(len(task.noise_index))[None]
+            info["observation_clean"] = obs[0]
+            obs = noisy_observation(obs, noise, task)
+        return obs[0], info
+
     def _observe_and_render(self) -> tuple[np.ndarray, dict[str, Any]]:
-        obs, info = self.task.observation()[0], self.task.single_info()
+        obs, info = self._observe()
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -161,25 +228,16 @@ class TaskEnv(gym.Env):
         Counts as the start of an episode (hold timers and the previous action are cleared).
         """
         self.task.set_state(self._index, **state)
-        return self.task.observation()[0], self.task.single_info()
+        return self._observe()
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode to make()")
             return None
-        if self._renderer is None:
-            self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
-        return self._renderer.draw(self.task.frame(0))
+        return self._display.draw(self.task, 0)
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state["_renderer"] = None  # pygame surfaces and windows do not pickle
-        return state
+        self._display.close()
 
 
 class TaskVectorEnv(VectorEnv):
@@ -201,6 +259,9 @@ class TaskVectorEnv(VectorEnv):
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
+        width: int | None = None,
+        height: int | None = None,
+        default_camera_config: Mapping[str, Any] | None = None,
         **task_kwargs: Any,
     ):
         self.num_envs = positive_int(num_envs, "num_envs")
@@ -211,6 +272,7 @@ class TaskVectorEnv(VectorEnv):
             render_mode, "render_mode", (None, *self.metadata["render_modes"])
         )
         self.task = self.task_class(self.num_envs, **task_kwargs)
+        self._display = Display(self.task, self.render_mode, width, height, default_camera_config)
         self.single_observation_space = self.task.single_observation_space
         self.single_action_space = self.task.single_action_space
         self.observation_structure = dict(self.task.observation_structure)
@@ -221,25 +283,55 @@ class TaskVectorEnv(VectorEnv):
         self._rngs: list[np.random.Generator] | None = None
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
-        self._renderer: Renderer | None = None
+        self._all = np.arange(self.num_envs)
+        # With observation noise: the observations last returned (a partial reset returns the
+        # other sub-envs' as they were).
+        self._noisy: np.ndarray | None = None
+
+    # --- the spec -------------------------------------------------------------------------------
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        """``make_vec`` sets the spec of the registered id; its ``max_episode_steps`` is then
+        made this env's own limit (``make_vec(..., max_episode_steps=N)`` shows N)."""
+        if value is not None and value.max_episode_steps != self.max_episode_steps:
+            value = replace(value, max_episode_steps=self.max_episode_steps)
+        self._spec = value
+
+    _spec: EnvSpec | None = None
 
     # --- seeding and resets ---------------------------------------------------------------------
 
-    def _seed(self, seed: Any) -> None:
+    def _seed(self, seed: Any, index: np.ndarray) -> None:
+        """New generators for the sub-envs ``index`` (all others keep theirs), as Gymnasium's
+        vector envs seed: ``None`` keeps them (fresh random ones on the first reset), an int
+        ``s`` gives sub-env ``i`` the seed ``s + i``, a list gives one seed (or ``None``:
+        random) per sub-env. Checked whole before any generator changes."""
         if seed is None:
             if self._rngs is None:
                 self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
             return
         if _is_seed(seed):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
+            seeds: list[Any] = [int(seed) + i for i in range(self.num_envs)]
         else:
             seeds = list(seed) if isinstance(seed, (list, tuple, np.ndarray)) else []
-            if len(seeds) != self.num_envs or not all(_is_seed(s) for s in seeds):
+            if len(seeds) != self.num_envs or not all(s is None or _is_seed(s) for s in seeds):
                 raise ValueError(
-                    f"seed must be None, an int >= 0 or {self.num_envs} such ints, got {seed!r}"
+                    f"seed must be None, an int >= 0 or a list of {self.num_envs} such ints "
+                    f"(or None for a random one), got {seed!r}"
                 )
-        self._rngs = [seeding.np_random(s)[0] for s in seeds]
-        self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
+        rngs = self._rngs
+        if rngs is None:
+            rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
+        for i in index:
+            rngs[i] = seeding.np_random(None if seeds[i] is None else int(seeds[i]))[0]
+        self._rngs = rngs
+        if seeds[0] is not None:
+            self._np_random, self._np_random_seed = seeding.np_random(int(seeds[0]))
 
     def _reset_index(self, index: np.ndarray) -> None:
         rngs = self._rngs
@@ -252,13 +344,13 @@ class TaskVectorEnv(VectorEnv):
     def reset(
         self,
         *,
-        seed: int | Sequence[int] | None = None,
+        seed: int | Sequence[int | None] | None = None,
         options: dict[str, Any] | None = None,
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        self._seed(seed)
-        mask = None if options is None else options.get("reset_mask")
+        opts = _options(options, ("reset_mask", *self.task.start_options))
+        mask = opts.pop("reset_mask", None)
         if mask is None:
-            index = np.arange(self.num_envs)
+            index = self._all
         else:
             mask = np.asarray(mask)
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_ or not mask.any():
@@ -267,8 +359,12 @@ class TaskVectorEnv(VectorEnv):
                     "with at least one True"
                 )
             index = np.flatnonzero(mask)
+        start = self.task.check_start(opts, len(index))
+        self._seed(seed, index)
         self._reset_index(index)
-        return self.task.observation(), self._info()
+        if start:
+            self.task.set_state(index, **start)
+        return self._observe(index)
 
     def step(
         self, action: Any
@@ -285,23 +381,39 @@ class TaskVectorEnv(VectorEnv):
             terminated[index] = False
             truncated[index] = False
         self._prev_done = terminated | truncated
-        return self.task.observation(), reward, terminated, truncated, self._info()
+        obs, info = self._observe(self._all)
+        return obs, reward, terminated, truncated, info
 
-    def _info(self) -> dict[str, np.ndarray]:
-        info = self.task.info()
+    def _observe(self, index: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Observations and info; the sub-envs ``index`` have new observations (with noise,
+        each drawn from the sub-env's generator; the clean ones are in ``info``)."""
+        task = self.task
+        obs, info = task.observation(), task.info()
+        if task.noise_index is not None:
+            if self._rngs is None:  # a hand-built state before any reset
+                self._seed(None, index)
+            rngs = self._rngs
+            assert rngs is not None
+            m = len(task.noise_index)
+            noise = np.stack([rngs[i].standard_normal(m) for i in index])
+            if self._noisy is None:
+                self._noisy = obs.copy()
+            self._noisy[index] = noisy_observation(obs[index], noise, task)
+            info["observation_clean"] = obs
+            obs = self._noisy.copy()
         mask = np.ones(self.num_envs, dtype=bool)
         info.update({"_" + k: mask for k in list(info)})
-        return info
+        return obs, info
 
     def set_state(
         self, index: Any = None, **state: Any
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Put sub-envs ``index`` (default all) in a hand-built state; returns obs, info."""
-        index = np.arange(self.num_envs) if index is None else self._index(index)
+        index = self._all if index is None else self._index(index)
         self.task.set_state(index, **state)
         self._steps[index] = 0
         self._prev_done[index] = False
-        return self.task.observation(), self._info()
+        return self._observe(index)
 
     def _index(self, index: Any) -> np.ndarray:
         arr = np.atleast_1d(np.asarray(index))
@@ -324,16 +436,7 @@ class TaskVectorEnv(VectorEnv):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode to make_vec()")
             return None
-        if self._renderer is None:
-            self._renderer = Renderer(self.render_mode, self.task.view(), fps=self.task.render_fps)
-        return tuple(self._renderer.draw(self.task.frame(i)) for i in range(self.num_envs))
+        return tuple(self._display.draw(self.task, i) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state["_renderer"] = None
-        return state
+        self._display.close()

@@ -25,8 +25,10 @@ from .. import sim
 from . import kernels
 from .bodies import make_body
 from .core import BatchedTask
+from .noise import noise_entries
 from .observations import observation_slices
 from .validation import (
+    at_most,
     choice,
     finite_array,
     nonnegative_scalar,
@@ -40,7 +42,22 @@ from .validation import (
 OBS_LIMIT = 5.0  # scaled velocities in an observation are clipped to ± this
 STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # State.arrays()
 
+# Bounds of the arguments (documented in the envs' argument tables). Past them an episode's
+# numbers stop meaning anything (spins of 1e300 rad/s give rewards of -inf), so they are refused.
+MAX_DT = 1.0  # s: the contact step keeps its energy guarantee up to here
+MAX_FRAME_SKIP = 10_000
+MAX_TORQUE = 1e4  # N m, also the top of a randomised episode's limit
+MAX_SPIN = 1e3  # rad/s: initial spins and the observation's spin scale
+MAX_HOLD_TIME = 1e4  # s
+MAX_WEIGHT = 1e6  # every reward weight and the success bonus
+MAX_NOISE_STD = 10.0  # observation units (the parts are scaled to within about ±5)
+
 Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
+
+
+def weight(value: Any, name: str) -> float:
+    """A reward weight: non-negative, at most :data:`MAX_WEIGHT`."""
+    return at_most(nonnegative_scalar(value, name), name, MAX_WEIGHT)
 
 
 def unit_quaternions(q: Any) -> np.ndarray:
@@ -64,6 +81,7 @@ class HoldTaskConfig:
     default_mass: ClassVar[float] = 1.0
     body_shapes: ClassVar[tuple[type, ...] | None] = None
     integrators: ClassVar[tuple[str, ...]] = sim.INTEGRATORS
+    observation_parts: ClassVar[tuple[str, ...]] = ()  # what observation_noise may name
 
     body: sim.Body | None = None
     half_extents: Any = None
@@ -81,6 +99,10 @@ class HoldTaskConfig:
     success_bonus: float = 10.0
     spin_scale: float | None = None
     backend: str | None = None
+    # Randomisation and noise (off by default). Each range is drawn once per episode from the
+    # reset's generator, after the start state's draws, so a default episode is unchanged.
+    torque_scale_range: tuple[float, float] | None = None
+    observation_noise: Mapping[str, float] | None = None
     rigid_body: sim.Body = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -100,22 +122,61 @@ class HoldTaskConfig:
             ),
         )
         put("integrator", choice(self.integrator, "integrator", self.integrators))
-        put("dt", positive_scalar(self.dt, "dt"))
-        put("frame_skip", positive_int(self.frame_skip, "frame_skip"))
-        put("max_torque", tuple(positive_vector(self.max_torque, "max_torque").tolist()))
-        put("spin_range", scalar_range(self.spin_range, "spin_range"))
-        put("hold_time", nonnegative_scalar(self.hold_time, "hold_time"))
+        put("dt", at_most(positive_scalar(self.dt, "dt"), "dt", MAX_DT, " s"))
+        frame_skip = positive_int(self.frame_skip, "frame_skip")
+        put("frame_skip", int(at_most(frame_skip, "frame_skip", MAX_FRAME_SKIP)))
+        torque = positive_vector(self.max_torque, "max_torque", maximum=MAX_TORQUE)
+        put("max_torque", tuple(torque.tolist()))
+        put("spin_range", scalar_range(self.spin_range, "spin_range", maximum=MAX_SPIN))
+        hold_time = nonnegative_scalar(self.hold_time, "hold_time")
+        put("hold_time", at_most(hold_time, "hold_time", MAX_HOLD_TIME, " s"))
         if not isinstance(self.terminate_on_success, (bool, np.bool_)):
             raise ValueError(
                 f"terminate_on_success must be a bool, got {self.terminate_on_success!r}"
             )
         put("terminate_on_success", bool(self.terminate_on_success))
         for name in ("spin_weight", "action_weight", "success_bonus"):
-            put(name, nonnegative_scalar(getattr(self, name), name))
+            put(name, weight(getattr(self, name), name))
         if self.spin_scale is not None:
-            put("spin_scale", positive_scalar(self.spin_scale, "spin_scale"))
+            scale = positive_scalar(self.spin_scale, "spin_scale")
+            put("spin_scale", at_most(scale, "spin_scale", MAX_SPIN, " rad/s"))
         if self.backend is not None:
             put("backend", choice(self.backend, "backend", sim.BACKENDS))
+        if self.torque_scale_range is not None:
+            low, high = scalar_range(self.torque_scale_range, "torque_scale_range")
+            if low <= 0:
+                raise ValueError(
+                    f"torque_scale_range must start above 0, got {self.torque_scale_range!r}"
+                )
+            if max(self.max_torque) * high > MAX_TORQUE:
+                raise ValueError(
+                    f"torque_scale_range: max_torque × its high end must be at most "
+                    f"{MAX_TORQUE:g} N m, got {self.torque_scale_range!r}"
+                )
+            put("torque_scale_range", (low, high))
+        if self.observation_noise is not None:
+            put("observation_noise", self._noise(self.observation_noise))
+
+    def _noise(self, value: Any) -> dict[str, float]:
+        """``observation_noise`` as ``part -> std`` in the observation's order."""
+        if not isinstance(value, Mapping):
+            raise ValueError(
+                f"observation_noise must be a dict of observation part -> standard deviation "
+                f"(parts {self.observation_parts}), got {value!r}"
+            )
+        for part in value:
+            if part not in self.observation_parts:
+                raise ValueError(
+                    f"observation_noise: unknown observation part {part!r}; the parts are "
+                    f"{self.observation_parts}"
+                )
+        stds = {}
+        for part in self.observation_parts:
+            if part in value:
+                name = f"observation_noise[{part!r}]"
+                std = nonnegative_scalar(value[part], name)
+                stds[part] = at_most(std, name, MAX_NOISE_STD)
+        return stds
 
     @property
     def observed_spin_scale(self) -> float:
@@ -137,11 +198,17 @@ class HoldTask(BatchedTask):
     """Batched core of a body-torque task with a hold-time goal.
 
     Subclasses set ``config_class``, ``observation_bounds`` (an ordered ``name -> (low, high)``
-    per part; a part's size is that of its bounds) and ``task_reward_terms``, and implement
-    :meth:`build_scene`, :meth:`draw`, :meth:`reset_envs`, :meth:`set_state`, :meth:`_measure`,
-    :meth:`_task_info`, :meth:`_task_single_info`, :meth:`view` and :meth:`frame`, and may
-    override :meth:`_step_events`; the task allocates ``_meas`` (its width is its own) and
-    :meth:`set_state` ends with :meth:`_start_episode`, then ``_measure(index)``.
+    per part; a part's size is that of its bounds), ``task_reward_terms`` and
+    ``start_options``, and implement :meth:`build_scene`, :meth:`draw_start`,
+    :meth:`reset_start`, :meth:`set_state`, :meth:`_measure`, :meth:`_task_info`,
+    :meth:`_task_single_info`, :meth:`view`, :meth:`default_camera` and :meth:`frame`, and may
+    override :meth:`_step_events` and :meth:`_check_value`; the task allocates ``_meas`` (its
+    width is its own) and :meth:`set_state` ends with :meth:`_start_episode`, then
+    ``_measure(index)``.
+
+    A reset draws the start state (:meth:`draw_start`), then the episode's randomised
+    parameters (``torque_scale_range``: one uniform), from the env's generator; with no
+    randomisation nothing more is drawn, so the default episodes do not depend on it.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
     off the state in one call, and the shared hold timer and reward terms are one more. Its
@@ -175,7 +242,7 @@ class HoldTask(BatchedTask):
         self.body = config.rigid_body
         self.inertia = np.array(self.body.inertia)  # body axes, symmetric
         self.dt, self.frame_skip = config.dt, config.frame_skip
-        self.max_torque = np.array(config.max_torque)
+        self.max_torque = np.array(config.max_torque)  # the nominal limit, N m per body axis
         self.spin_scale = config.observed_spin_scale
         self.hold_steps = config.hold_steps
         self.render_fps = 1.0 / config.action_period
@@ -188,6 +255,10 @@ class HoldTask(BatchedTask):
         for name, (lo, hi) in self.observation_bounds.items():
             low[self._slices[name]], high[self._slices[name]] = lo, hi
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
+        if config.observation_noise is not None:
+            entries = noise_entries(config.observation_noise, self._slices)
+            if entries is not None:
+                self.noise_index, self.noise_std = entries
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.reward_terms = (
             *self.task_reward_terms,
@@ -208,6 +279,9 @@ class HoldTask(BatchedTask):
         )
 
         n = self.num_envs
+        # This episode's torque limit per env (N m per body axis): max_torque unless randomised.
+        self.torque_limit = np.tile(self.max_torque, (n, 1))
+        self._random_draws = 0 if config.torque_scale_range is None else 1
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
@@ -223,6 +297,15 @@ class HoldTask(BatchedTask):
         return {name: int(np.size(low)) for name, (low, _) in cls.observation_bounds.items()}
 
     # --- what a task supplies -------------------------------------------------------------------
+
+    @abstractmethod
+    def draw_start(self, rng: np.random.Generator) -> np.ndarray:
+        """The random numbers one env's start state consumes, as a 1-D array of fixed length."""
+
+    @abstractmethod
+    def reset_start(self, index: np.ndarray, draws: np.ndarray) -> None:
+        """Put the envs ``index`` in their start states from the stacked draws of
+        :meth:`draw_start`, batched (ends as :meth:`set_state` does)."""
 
     @abstractmethod
     def _measure(self, index: np.ndarray) -> None:
@@ -254,6 +337,43 @@ class HoldTask(BatchedTask):
         )
 
     # --- shared ---------------------------------------------------------------------------------
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """The start state's draws, then one uniform per randomised parameter."""
+        start = self.draw_start(rng)
+        if not self._random_draws:
+            return start
+        return np.concatenate((start, rng.random(self._random_draws)))
+
+    def reset_envs(self, index: np.ndarray, draws: np.ndarray) -> None:
+        if self._random_draws:
+            u = draws[:, -self._random_draws :]
+            draws = draws[:, : -self._random_draws]
+            scale_range = self.config.torque_scale_range
+            assert scale_range is not None
+            low, high = scale_range
+            scale = low + (high - low) * u[:, 0]
+            self.torque_limit[index] = scale[:, None] * self.max_torque
+        self.reset_start(index, draws)
+
+    def check_start(self, options: Mapping[str, Any], k: int) -> dict[str, Any]:
+        """Each start option checked by :meth:`_check_value` (named ``options[key]``), as the
+        value :meth:`set_state` takes for ``k`` envs."""
+        return {
+            name: self._check_value(name, value, k, f"options[{name!r}]")
+            for name, value in options.items()
+        }
+
+    def _check_value(self, name: str, value: Any, k: int, label: str) -> np.ndarray:
+        """A hand-built state value for ``k`` envs, checked (``ValueError`` naming ``label``)
+        and broadcast to ``(k, width)``: a state field of :data:`STATE_FIELDS` (orientation
+        normalised). Tasks extend it with their own keys."""
+        width = 4 if name == "orientation" else 3
+        arr = quaternions(value, label) if name == "orientation" else finite_array(value, label)
+        try:
+            return np.array(np.broadcast_to(arr, (k, width)))
+        except ValueError:
+            raise ValueError(f"{label} must broadcast to ({k}, {width})") from None
 
     # Views of _meas taken on use (a view kept as an attribute would not survive pickling).
     @property
@@ -291,18 +411,13 @@ class HoldTask(BatchedTask):
             if trusted:
                 arrays[name][index, 0] = unit_quaternions(value) if name == "orientation" else value
                 continue
-            arr = quaternions(value, name) if name == "orientation" else finite_array(value, name)
-            width = arrays[name].shape[-1]
-            try:
-                arrays[name][index, 0] = np.broadcast_to(arr, (k, width))
-            except ValueError:
-                raise ValueError(f"{name} must broadcast to ({k}, {width})") from None
+            arrays[name][index, 0] = self._check_value(name, value, k, name)
         return sim.State(**arrays)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Apply validated ``action`` (N, 3), which the task keeps as ``prev_action`` (the
         caller passes its own copy); reward and terminated are fresh arrays."""
-        self._advance(action * self.max_torque)  # body-frame torque, (N, 3)
+        self._advance(action * self.torque_limit)  # body-frame torque, (N, 3)
         self.prev_action = action
         self._measure(self._all)
         self._step_events()
@@ -326,16 +441,21 @@ class HoldTask(BatchedTask):
         return self._obs.copy()
 
     def info(self) -> dict[str, np.ndarray]:
-        return {
+        info = {
             **self._task_info(),
             **{name: self.terms[:, k].copy() for k, name in enumerate(self.reward_terms)},
             "is_success": self.hold >= self.hold_steps,
         }
+        if self._random_draws:
+            info["torque_limit"] = self.torque_limit.copy()
+        return info
 
     def single_info(self) -> dict[str, Any]:
         info = self._task_single_info()
         info.update(zip(self.reward_terms, self.terms[0].tolist(), strict=True))
         info["is_success"] = bool(self.hold[0] >= self.hold_steps)
+        if self._random_draws:
+            info["torque_limit"] = self.torque_limit[0].copy()
         return info
 
     def status(self, i: int) -> str:

@@ -1,11 +1,11 @@
 """Compiled per-step work of the hold tasks: one numba call where numpy needs dozens.
 
-With one env the per-step arrays hold a single element, so numpy's cost is its ~0.5-5 µs
-dispatch per operation, not arithmetic: measuring, rewarding and observing in numpy took ~75 µs
-per Reorient step and ~400 µs per BoxLanding step besides the physics (~11 and ~21 µs here). Each kernel here loops over the batch and does an
-element's work in scalar code, so a call costs about the same for one env as a numpy op does,
-and an element's result does not depend on the batch size or its position in it: a vector env
-stays bit-identical to single envs.
+With one env the per-step arrays hold a single element, so numpy's cost is its dispatch per
+operation, not arithmetic, and measuring, rewarding and observing take dozens of operations per
+step. Each kernel here loops over the batch and does an element's work in scalar code, so a
+call costs about the same for one env as a single numpy operation does, and an element's result
+does not depend on the batch size or its position in it: a vector env stays bit-identical to
+single envs.
 
 Quaternions are (x, y, z, w), scalar last, mapping body to world as in the simulator. R(q) is
 the standard rotation matrix of a unit quaternion (Shoemake, "Animating rotation with

@@ -10,16 +10,22 @@ shadow of a convex body), drawn before the bodies.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+import math
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ..sim.shapes import Box, Polyhedron, Sphere
+from ..sim.validation import finite_array, positive_scalar
 
 AXIS_COLORS = ((220, 60, 60), (60, 190, 80), (70, 120, 235))  # body x, y, z
 GHOST_AXIS_COLORS = ((255, 170, 170), (170, 240, 180), (170, 200, 255))
+MAX_FRAME_SIZE = 4096  # pixels, the bound of ``width`` and ``height``
+MAX_CAMERA_DISTANCE = 1e4  # m
 
 
 @dataclass(frozen=True)
@@ -33,10 +39,85 @@ class Camera:
 
 
 @dataclass(frozen=True)
-class View:
-    """Everything about the picture that does not change between frames."""
+class CameraConfig:
+    """An orbit camera in the terms of MuJoCo's free camera (and its v5 envs'
+    ``default_camera_config``): it looks at ``lookat`` from ``distance`` m away, along the
+    direction of ``azimuth`` degrees (about world +z from +x) and ``elevation`` degrees (negative:
+    from above, looking down). ``lookat=None`` follows a point the task names (its body)."""
 
-    camera: Camera
+    distance: float
+    azimuth: float
+    elevation: float
+    lookat: tuple[float, float, float] | None = None
+    fov_deg: float = 35.0
+
+    def camera(self, target: Any = (0.0, 0.0, 0.0)) -> Camera:
+        """The pinhole camera, looking at ``lookat`` (or at ``target`` when that is ``None``)."""
+        a, e = math.radians(self.azimuth), math.radians(self.elevation)
+        forward = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+        look = np.asarray(target if self.lookat is None else self.lookat, dtype=float)
+        eye = look - self.distance * forward
+        return Camera(tuple(eye.tolist()), tuple(look.tolist()), fov_deg=self.fov_deg)
+
+
+CAMERA_KEYS = ("distance", "azimuth", "elevation", "lookat")
+
+
+def camera_config(value: Any, default: CameraConfig) -> CameraConfig:
+    """``default`` with the entries of ``value`` (a dict of :data:`CAMERA_KEYS`, or ``None``),
+    each checked: a ``ValueError`` names ``default_camera_config`` and the key."""
+    if value is None:
+        return default
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            f"default_camera_config must be a dict with keys from {CAMERA_KEYS}, got {value!r}"
+        )
+    changes: dict[str, Any] = {}
+    for key, item in value.items():
+        name = f"default_camera_config[{key!r}]"
+        if key not in CAMERA_KEYS:
+            raise ValueError(
+                f"default_camera_config: unknown key {key!r}; the keys are {CAMERA_KEYS}"
+            )
+        if key == "lookat":
+            point = finite_array(item, name)
+            if point.shape != (3,):
+                raise ValueError(f"{name} must be a point (x, y, z), got {item!r}")
+            changes[key] = tuple(point.tolist())
+            continue
+        try:
+            number = float(item)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be a number, got {item!r}") from None
+        if not math.isfinite(number):
+            raise ValueError(f"{name} must be finite, got {item!r}")
+        if key == "distance":
+            number = positive_scalar(number, name)
+            if number > MAX_CAMERA_DISTANCE:
+                raise ValueError(f"{name} must be at most {MAX_CAMERA_DISTANCE:g} m, got {item!r}")
+        if key == "elevation" and not -90.0 < number < 90.0:
+            raise ValueError(f"{name} must lie strictly between -90 and 90 degrees, got {item!r}")
+        changes[key] = number
+    return replace(default, **changes)
+
+
+def frame_size(value: Any, name: str) -> int:
+    """A frame's ``width`` or ``height``: an integer number of pixels in [1, MAX_FRAME_SIZE]."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not 1 <= value <= MAX_FRAME_SIZE
+    ):
+        raise ValueError(
+            f"{name} must be an integer in [1, {MAX_FRAME_SIZE}] pixels, got {value!r}"
+        )
+    return int(value)
+
+
+@dataclass(frozen=True)
+class View:
+    """Everything about the picture but the camera: its size and scenery."""
+
     width: int = 480
     height: int = 480
     ground: bool = False  # draw the plane z = 0 (a checkerboard) and the bodies' shadows
@@ -127,9 +208,12 @@ class Frame:
 
 
 class Renderer:
-    """Draws :class:`Frame` s of a fixed :class:`View`; ``rgb_array`` returns (H, W, 3) uint8."""
+    """Draws :class:`Frame` s of a fixed :class:`View` through a :class:`Camera` given per
+    frame; ``rgb_array`` returns (H, W, 3) uint8."""
 
     def __init__(self, render_mode: str, view: View, fps: float = 30.0):
+        # Gymnasium hides pygame's greeting as well; set here too, for any import order.
+        os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
         try:
             import pygame
         except ImportError as e:  # pragma: no cover - pygame is in the render extra
@@ -148,14 +232,17 @@ class Renderer:
         self.clock: Any = None
         self._background = self._gradient(view)
         self._font: Any = None
-        self._basis()
+        self._camera: Camera | None = None
         self._light = np.array([0.35, -0.45, 0.82])
         self._light /= np.linalg.norm(self._light)
 
     # --- camera ---------------------------------------------------------------------------------
 
-    def _basis(self) -> None:
-        cam = self.view.camera
+    def set_camera(self, cam: Camera) -> None:
+        """Look through ``cam`` from the next frame on (and for :meth:`project`)."""
+        if cam == self._camera:
+            return
+        self._camera = cam
         eye, target = np.asarray(cam.eye, float), np.asarray(cam.look_at, float)
         forward = target - eye
         forward /= np.linalg.norm(forward)
@@ -184,7 +271,12 @@ class Renderer:
             np.uint8
         )
 
-    def draw(self, frame: Frame) -> np.ndarray | None:
+    def draw(self, frame: Frame, camera: Camera | None = None) -> np.ndarray | None:
+        """Draw ``frame`` through ``camera`` (default: the last one set)."""
+        if camera is not None:
+            self.set_camera(camera)
+        if self._camera is None:
+            raise ValueError("camera: no camera set; pass one to draw() or set_camera()")
         pg = self._pg
         pg.surfarray.blit_array(self.surface, self._background)
         if self.view.ground:
@@ -249,7 +341,8 @@ class Renderer:
 
     def _draw_ground(self) -> None:
         v = self.view
-        cx, cy = np.round(np.asarray(v.camera.look_at[:2]) / v.ground_cell) * v.ground_cell
+        look_at = np.asarray(self._camera.look_at[:2] if self._camera else (0.0, 0.0))
+        cx, cy = np.round(look_at / v.ground_cell) * v.ground_cell
         n = int(np.ceil(v.ground_extent / v.ground_cell))
         cells = []
         for i in range(-n, n):
@@ -288,7 +381,7 @@ class Renderer:
         pg = self._pg
         # pygame has one display: another renderer's close() may have shut it, so re-open then.
         if self.window is None or not pg.display.get_init():
-            pg.display.init()
+            _init_display(pg)
             self.window = pg.display.set_mode(self.size)
             pg.display.set_caption("rigid_env")
             self.clock = pg.time.Clock()
@@ -301,3 +394,24 @@ class Renderer:
         if self.window is not None:
             self._pg.display.quit()
             self.window = None
+
+
+def _init_display(pg: Any) -> None:
+    """``pygame.display.init()``; without a display to open (a headless Linux machine: no
+    ``DISPLAY`` or ``WAYLAND_DISPLAY``) and no ``SDL_VIDEODRIVER`` chosen, SDL's offscreen
+    driver directly. SDL would end there anyway, after printing an error about
+    ``XDG_RUNTIME_DIR`` for each display driver it tried; the window then shows nothing."""
+    headless = (
+        sys.platform.startswith("linux")
+        and not os.environ.get("DISPLAY")
+        and not os.environ.get("WAYLAND_DISPLAY")
+        and "SDL_VIDEODRIVER" not in os.environ
+    )
+    if not headless:
+        pg.display.init()
+        return
+    os.environ["SDL_VIDEODRIVER"] = "offscreen"
+    try:
+        pg.display.init()
+    finally:
+        del os.environ["SDL_VIDEODRIVER"]

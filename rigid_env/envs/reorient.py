@@ -85,6 +85,17 @@ except in a fraction ``tumble_fraction`` (1/4) of the episodes where it lies wit
 ``tumble_spread`` (0.05 rad) of the intermediate principal axis: the unstable tumble. The target
 orientation is uniform on SO(3) per episode, or fixed by ``target_orientation``.
 
+``reset(options=...)`` replaces parts of the drawn start (the draws are made all the same, so
+later episodes do not depend on the options); a vector env broadcasts each value over the
+sub-envs it resets (``options["reset_mask"]``), or takes one row per reset sub-env. Other keys,
+and values that are not these, raise ``ValueError`` naming ``options[key]``:
+
+| Key                    | Value                                                  |
+|------------------------|--------------------------------------------------------|
+| ``orientation``        | quaternion (x, y, z, w), body to world (normalised)    |
+| ``angular_velocity``   | (3,) world frame, rad/s                                |
+| ``target``             | the target orientation, a quaternion (normalised)      |
+
 ## Episode End
 
 1. Termination: ``is_success`` (only with ``terminate_on_success=True``, the default).
@@ -94,7 +105,9 @@ orientation is uniform on SO(3) per episode, or fixed by ``target_orientation``.
 
 Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, rad/s), ``energy``
 (kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array), the reward
-terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
+terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``). With ``torque_scale_range``:
+``torque_limit`` (the episode's, (3,), N m); with ``observation_noise``:
+``observation_clean`` (the observation without noise).
 
 ## Arguments
 
@@ -123,9 +136,25 @@ terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``).
 | ``angle_weight``, ``spin_weight``, ``action_weight``, ``success_bonus`` | 1, 0.1, 0.01, 10 | reward terms (table above) |
 | ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high, at least 1 rad/s |
 | ``backend``           | ``None``              | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
+| ``torque_scale_range``| ``None``              | ``(low, high)``: each episode's torque limit is ``max_torque`` × s, s uniform in it (one s for the three axes), drawn at the reset |
+| ``observation_noise`` | ``None``              | ``{part: std}``: Gaussian noise added to those observation parts (std in the part's units, table above), clipped to the observation space; ``info["observation_clean"]`` keeps the observation without it |
 | ``render_mode``       | ``None``              | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
+| ``width``, ``height`` | ``480``, ``480``      | frame size, pixels                                        |
+| ``default_camera_config`` | ``None``          | a dict of ``distance`` (m), ``azimuth`` and ``elevation`` (degrees) and ``lookat`` (a point, m), as in MuJoCo's v5 envs; keys not given keep the default: 5.5 body radii from the origin, azimuth 124°, elevation −24° |
 
-The arguments other than ``render_mode`` form a :class:`ReorientConfig` (a frozen dataclass,
+Bounds: ``dt`` ≤ 1 s, ``frame_skip`` ≤ 10 000, ``max_torque`` (and its randomised value) ≤
+10⁴ N m, ``spin_range``, ``spin_scale`` and ``spin_threshold`` ≤ 1000 rad/s,
+``angle_threshold`` ≤ π, ``tumble_spread`` ≤ 10, ``hold_time`` ≤ 10⁴ s, every weight and the
+bonus ≤ 10⁶, ``half_extents`` ≤ 100 m, ``mass`` ≤ 10⁶ kg, noise std ≤ 10, ``width`` and
+``height`` ≤ 4096. Beyond them an episode's numbers stop meaning anything (a torque of
+1e300 N m gave rewards of −inf), so they are refused.
+
+Randomisation draws from the env's generator once per episode, after the start state, so it is
+reproducible from the reset seed (a vector sub-env ``i`` seeded ``s + i`` as before), and with
+none configured nothing more is drawn: the default episodes are unchanged.
+
+The arguments other than ``render_mode``, ``width``, ``height`` and
+``default_camera_config`` form a :class:`ReorientConfig` (a frozen dataclass,
 validated when built); ``make(..., config=ReorientConfig(...))`` passes one whole.
 Bad values raise ``ValueError`` naming the argument. The vector env also takes ``num_envs`` and
 ``max_episode_steps``; seeded with ``s`` its sub-env ``i`` uses seed ``s + i`` and equals a single
@@ -149,11 +178,25 @@ from .. import sim
 from ..sim.rotation import quat_rotate
 from . import kernels
 from .core import TaskEnv, TaskVectorEnv
-from .hold_task import OBS_LIMIT, HoldTask, HoldTaskConfig, unit_quaternions
-from .rendering import Camera, Frame, Item, Mesh, View
-from .validation import nonnegative_scalar, positive_scalar, quaternions, unit_interval
+from .hold_task import (
+    MAX_SPIN,
+    OBS_LIMIT,
+    Bounds,
+    HoldTask,
+    HoldTaskConfig,
+    unit_quaternions,
+    weight,
+)
+from .rendering import CameraConfig, Frame, Item, Mesh, View
+from .validation import at_most, nonnegative_scalar, positive_scalar, quaternions, unit_interval
 
 MAX_EPISODE_STEPS = 200
+MAX_TUMBLE_SPREAD = 10.0  # beyond about 3 the tumbling episodes' spin axis is already isotropic
+OBSERVATION_BOUNDS: dict[str, Bounds] = {
+    "error_quaternion": ((-1.0, -1.0, -1.0, 0.0), (1.0, 1.0, 1.0, 1.0)),
+    "angular_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
+    "previous_action": ((-1.0,) * 3, (1.0,) * 3),
+}
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
@@ -166,6 +209,7 @@ class ReorientConfig(HoldTaskConfig):
 
     default_half_extents: ClassVar[tuple[float, float, float]] = (0.3, 0.2, 0.1)
     default_mass: ClassVar[float] = 12.0
+    observation_parts: ClassVar[tuple[str, ...]] = tuple(OBSERVATION_BOUNDS)
 
     tumble_fraction: float = 0.25
     tumble_spread: float = 0.05
@@ -181,15 +225,18 @@ class ReorientConfig(HoldTaskConfig):
             object.__setattr__(self, name, value)
 
         put("tumble_fraction", unit_interval(self.tumble_fraction, "tumble_fraction"))
-        put("tumble_spread", nonnegative_scalar(self.tumble_spread, "tumble_spread"))
+        spread = nonnegative_scalar(self.tumble_spread, "tumble_spread")
+        put("tumble_spread", at_most(spread, "tumble_spread", MAX_TUMBLE_SPREAD))
         if self.target_orientation is not None:
             target = quaternions(self.target_orientation, "target_orientation")
             if target.shape != (4,):
                 raise ValueError(f"target_orientation must be one quaternion, got {target!r}")
             put("target_orientation", tuple(target.tolist()))
-        put("angle_threshold", positive_scalar(self.angle_threshold, "angle_threshold"))
-        put("spin_threshold", positive_scalar(self.spin_threshold, "spin_threshold"))
-        put("angle_weight", nonnegative_scalar(self.angle_weight, "angle_weight"))
+        angle = positive_scalar(self.angle_threshold, "angle_threshold")
+        put("angle_threshold", at_most(angle, "angle_threshold", np.pi, " rad"))
+        spin = positive_scalar(self.spin_threshold, "spin_threshold")
+        put("spin_threshold", at_most(spin, "spin_threshold", MAX_SPIN, " rad/s"))
+        put("angle_weight", weight(self.angle_weight, "angle_weight"))
 
 
 class ReorientTask(HoldTask):
@@ -197,12 +244,9 @@ class ReorientTask(HoldTask):
 
     config_class = ReorientConfig
     config: ReorientConfig
-    observation_bounds = {
-        "error_quaternion": ((-1.0, -1.0, -1.0, 0.0), (1.0, 1.0, 1.0, 1.0)),
-        "angular_velocity": ((-OBS_LIMIT,) * 3, (OBS_LIMIT,) * 3),
-        "previous_action": ((-1.0,) * 3, (1.0,) * 3),
-    }
+    observation_bounds = OBSERVATION_BOUNDS
     task_reward_terms = ("reward_angle",)
+    start_options = ("orientation", "angular_velocity", "target")
 
     def __init__(self, num_envs: int, config: ReorientConfig | None = None, **kwargs: Any):
         super().__init__(num_envs, config, **kwargs)
@@ -235,11 +279,11 @@ class ReorientTask(HoldTask):
 
     # --- resets ---------------------------------------------------------------------------------
 
-    def draw(self, rng: np.random.Generator) -> np.ndarray:
+    def draw_start(self, rng: np.random.Generator) -> np.ndarray:
         # [spin magnitude, tumble coin] uniforms; [q0 (4), target (4), direction (3), perturbation (3)].
         return np.concatenate((rng.random(2), rng.standard_normal(14)))
 
-    def reset_envs(self, index: np.ndarray, draws: np.ndarray) -> None:
+    def reset_start(self, index: np.ndarray, draws: np.ndarray) -> None:
         cfg = self.config
         u, g = draws[:, :2], draws[:, 2:]
         q0 = _normalize(g[:, 0:4])  # normalised 4-D Gaussians are uniform on SO(3)
@@ -266,16 +310,24 @@ class ReorientTask(HoldTask):
         index = np.asarray(index, dtype=np.intp)
         self._set_state(index, orientation, angular_velocity, target, trusted=False)
 
+    def _check_value(self, name: str, value: Any, k: int, label: str) -> np.ndarray:
+        # The target is a quaternion like the orientation.
+        return super()._check_value("orientation" if name == "target" else name, value, k, label)
+
     def _set_state(
         self, index: np.ndarray, orientation: Any, angular_velocity: Any, target: Any, trusted: bool
     ) -> None:
-        """:meth:`set_state`; ``trusted``: the values come from :meth:`reset_envs` (no checks,
+        """:meth:`set_state`; ``trusted``: the values come from :meth:`reset_start` (no checks,
         see ``HoldTask._edited_state``)."""
         state = self._edited_state(
             index, trusted, orientation=orientation, angular_velocity=angular_velocity
         )
         if target is not None:
-            unit = unit_quaternions(target) if trusted else quaternions(target, "target")
+            unit = (
+                unit_quaternions(target)
+                if trusted
+                else self._check_value("target", target, len(index), "target")
+            )
             self.target[index] = np.broadcast_to(unit, (len(index), 4))
         self.state = state
         self._start_episode(index)
@@ -324,8 +376,11 @@ class ReorientTask(HoldTask):
         return float(np.max(np.linalg.norm(self.mesh.vertices, axis=1))) if self.mesh else 0.3
 
     def view(self) -> View:
-        eye = 5.5 * self._radius() * _normalize(np.array([1.0, -1.5, 0.8]))
-        return View(Camera(tuple(eye)))
+        return View()
+
+    def default_camera(self) -> CameraConfig:
+        """The body at the origin from 5.5 of its radii: it fills about half the frame."""
+        return CameraConfig(distance=5.5 * self._radius(), azimuth=124.0, elevation=-24.0)
 
     def frame(self, i: int) -> Frame:
         if self.mesh is None:

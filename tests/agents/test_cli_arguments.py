@@ -290,10 +290,10 @@ BENCH_CASES = [
     ("reorient_frame", ["--num-envs", "0"], "--num-envs"),
     ("reorient_frame", ["--num-envs", "1000000000000"], "needs ~"),
     ("reorient_frame", ["--seconds", "0"], "--seconds"),
-    ("readme", ["--readme", "nowhere.md"], "--readme"),
+    ("readme", ["nowhere.md"], "nowhere.md is not a file"),
     (
         "readme",
-        ["--readme", str(ROOT / "README.md"), "--check", "--results", "notes"],
+        [str(ROOT / "README.md"), "--check", "--results", "notes"],
         "--results: cannot render",
     ),  # fmt: skip
 ]

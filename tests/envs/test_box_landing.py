@@ -98,8 +98,14 @@ def test_same_seed_same_trajectory_bit_for_bit():
         LOW,  # truncation-driven autoreset, with touchdowns in some sub-envs and not others
         SETTLING,
         dict(LOW, integrator="euler", target_face="random", restitution=0.8, friction=0.2),
+        # Randomised: each sub-env's noise and torque limit come from its own generator.
+        dict(
+            LOW,
+            observation_noise={"height": 0.02, "up": 0.01, "angular_velocity": 0.05},
+            torque_scale_range=(0.5, 1.5),
+        ),
     ],
-    ids=["truncation", "termination", "euler-random-face-bouncy"],
+    ids=["truncation", "termination", "euler-random-face-bouncy", "noise-torque-limits"],
 )
 def test_vector_env_equals_single_envs_seeded_s_plus_i(kwargs):
     ends = assert_vector_equals_singles(
@@ -208,7 +214,8 @@ def test_rgb_frame_shows_box_ghost_ground_and_shadow():
     env.reset(seed=0)
     u = env.unwrapped
     q, x = resting_pose("-z")
-    u.set_state(position=x + [0, 0, 1.0], orientation=q, linear_velocity=(0, 0, 0))
+    # 0.3 m up: the camera follows the box, and the shadow below it is in view.
+    u.set_state(position=x + [0, 0, 0.3], orientation=q, linear_velocity=(0, 0, 0))
     high = env.render()
     assert_frame_ok(high)
     shadow = np.all(high == (60, 60, 58), axis=-1).sum()  # the renderer's shadow colour

@@ -54,6 +54,23 @@ def test_registered_with_time_limit_and_vector_entry_point(env_id):
 
 
 @pytest.mark.parametrize("env_id", ENVS)
+def test_a_given_episode_limit_shows_in_the_spec(env_id):
+    # make_vec passes max_episode_steps to the vector env, which truncates there; its spec
+    # says so (make's TimeLimit already did).
+    registered = gym.spec(env_id).max_episode_steps
+    vec = make_vec(env_id, 2, max_episode_steps=7)
+    assert vec.spec.max_episode_steps == vec.unwrapped.max_episode_steps == 7
+    assert vec.spec.kwargs["max_episode_steps"] == 7 and gym.spec(env_id).max_episode_steps == (
+        registered
+    )
+    vec.reset(seed=0)
+    truncated = [vec.step(np.zeros((2, 3), np.float32))[3].all() for _ in range(7)]
+    assert truncated == [False] * 6 + [True]
+    assert make_vec(env_id, 2).spec.max_episode_steps == registered
+    assert gym.make(env_id, max_episode_steps=7).spec.max_episode_steps == 7
+
+
+@pytest.mark.parametrize("env_id", ENVS)
 def test_make_with_module_prefix_needs_no_import(env_id):
     code = f"import gymnasium as g; e = g.make('rigid_env:{env_id}'); e.reset(seed=0)"
     subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True, timeout=60)

@@ -51,10 +51,15 @@ def test_same_seed_same_trajectory_bit_for_bit():
     [
         {},  # truncation-driven autoreset (max_episode_steps below)
         # Loose thresholds and a short hold: episodes terminate by success within a few steps.
-        {"angle_threshold": 3.2, "spin_threshold": 100.0, "hold_time": 0.1},
+        {"angle_threshold": np.pi, "spin_threshold": 100.0, "hold_time": 0.1},
         {"integrator": "rk4", "frame_skip": 3, "target_orientation": (0, 0, 1, 1)},
+        # Randomised: each sub-env's noise and torque limit come from its own generator.
+        {
+            "observation_noise": {"error_quaternion": 0.01, "angular_velocity": 0.05},
+            "torque_scale_range": (0.5, 1.5),
+        },
     ],
-    ids=["truncation", "termination", "rk4-fixed-target"],
+    ids=["truncation", "termination", "rk4-fixed-target", "noise-torque-limits"],
 )
 def test_vector_env_equals_single_envs_seeded_s_plus_i(kwargs):
     ends = assert_vector_equals_singles(

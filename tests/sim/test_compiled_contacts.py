@@ -176,6 +176,10 @@ def test_compiled_cap_is_reported_and_warned_as_numpy_does(settings):
         a, b = numpy_scene.report["contacts"], compiled_scene.report["contacts"]
         assert b.capped == a.capped
         assert b.converged == a.converged
+        # Per element, which solves stopped (an env counts them per sub-env): the same on both.
+        np.testing.assert_array_equal(b.capped_mask, a.capped_mask)
+        assert a.capped_mask.shape == (int(np.prod(state.position.shape[:-2])),)
+        assert int(a.capped_mask.sum()) == a.capped
         kinds = [w.category for w in out_warnings]
         assert kinds == [w.category for w in ref_warnings]
         if b.capped:

@@ -203,6 +203,7 @@ def report_of(tolerance: float):
             capped, unpaid = int(row[CAPPED] > 0), row[UNPAID_ENERGY]
             touched = np.array([row[TOUCHED] > 0])
             removed = np.array([row[ENERGY_REMOVED]])
+            capped_mask = np.array([capped > 0])
         else:
             engaged = int(np.count_nonzero(columns[:, ENGAGED]))
             peak = columns.max(axis=0)
@@ -212,6 +213,7 @@ def report_of(tolerance: float):
             warmed = int(np.count_nonzero(columns[:, WARMED]))
             touched = columns[:, TOUCHED] > 0
             removed = columns[:, ENERGY_REMOVED].copy()
+            capped_mask = columns[:, CAPPED] > 0
         if counts is not None:  # several steps: the most of any one step, as numpy merges
             engaged, capped, warmed = (int(m) for m in counts.max(axis=0))
         # ContactReport(...) without the frozen dataclass's nine object.__setattr__ calls
@@ -230,6 +232,7 @@ def report_of(tolerance: float):
             unpaid_energy=float(unpaid),
             touched=touched,
             energy_removed=removed,
+            capped_mask=capped_mask,
         )
         if capped:
             # warn_capped ← report ← Driver.report ← Scene._compiled_step ← Scene.step ← caller

@@ -64,7 +64,9 @@ class ContactReport:
     a bounce which began and ended within the step (the positions at the step's ends may both
     be clear of the ground); ``energy_removed``: per batch element (flattened, (N,) float), the
     energy (J) the contacts took out of the step, ``energy``'s ``removed`` (0 for an element with
-    no contact within reach; over a call of several steps, the sum over them).
+    no contact within reach; over a call of several steps, the sum over them); ``capped_mask``:
+    per batch element (flattened, (N,) bool) whether its solve stopped at a cap this step
+    (``capped`` counts them).
     """
 
     engaged: int = 0
@@ -77,6 +79,7 @@ class ContactReport:
     unpaid_energy: float = 0.0
     touched: np.ndarray | None = None
     energy_removed: np.ndarray | None = field(default=None, metadata={"merge": "sum"})
+    capped_mask: np.ndarray | None = None
 
     @property
     def converged(self) -> bool:
@@ -194,7 +197,10 @@ class SolveContacts:
         touched = np.zeros(size, bool)
         if len(idx) == 0:
             ctx.report[REPORT_KEY] = ContactReport(
-                tolerance=settings.tolerance, touched=touched, energy_removed=np.zeros(size)
+                tolerance=settings.tolerance,
+                touched=touched,
+                energy_removed=np.zeros(size),
+                capped_mask=np.zeros(size, bool),
             )
             ctx.warm = None
             return
@@ -226,6 +232,8 @@ class SolveContacts:
         touched[idx] = np.any(impulse > 0, axis=-1) | np.any(u != u_in, axis=(-1, -2))
         impact_capped = hits.get("impact_capped")
         capped = ~converged if impact_capped is None else ~converged | impact_capped
+        capped_mask = np.zeros(size, bool)
+        capped_mask[idx] = capped
         events = hits.get("events")
         report = ContactReport(
             engaged=len(idx),
@@ -237,6 +245,7 @@ class SolveContacts:
             tolerance=settings.tolerance,
             touched=touched,
             energy_removed=np.zeros(size),
+            capped_mask=capped_mask,
         )
         ctx.report[REPORT_KEY] = report
         if report.capped:
