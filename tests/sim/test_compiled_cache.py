@@ -2,6 +2,7 @@
 a cached kernel keeps the code of the callees and constants it took from other files."""
 
 import importlib
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -105,3 +106,67 @@ def test_importing_the_simulator_does_not_import_numba():
     code = "import sys, rigid_env.sim; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False"]
+
+
+def probe_env(tmp_path, drivers):
+    import os
+
+    return {
+        **os.environ,
+        "RIGID_ENV_CACHE_DIR": str(drivers),
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+    }
+
+
+def test_a_compile_is_announced_once_and_a_load_is_not(tmp_path):
+    """A process that compiles says so on stderr before it starts (``first_call``), with the
+    usual duration; a process that loads says nothing; the first compile's time is recorded and
+    quoted the next time a step of that kind compiles."""
+    import subprocess
+
+    drivers = tmp_path / "drivers"
+    env = probe_env(tmp_path, drivers)
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, check=True
+        )
+        for _ in range(2)
+    ]
+    first, second = (run.stderr.strip().splitlines() for run in runs)
+    assert len(first) == 1, first
+    assert "compiling the simulator's step" in first[0]
+    assert "about 5 s with empty caches" in first[0]
+    assert second == []
+    times = json.loads((drivers / "compile_times.json").read_text())
+    assert set(times) == {"free"} and times["free"] > 0
+    # A new composition of the same kind (another integrator) quotes the recorded time.
+    other = PROBE.replace("backend=", 'integrator="rk4", backend=')
+    third = subprocess.run(
+        [sys.executable, "-c", other], env=env, capture_output=True, text=True, check=True
+    ).stderr
+    assert f"(it took {times['free']:.0f} s the last time here)" in third, third
+
+
+def test_processes_that_start_together_compile_once(tmp_path):
+    """Three processes on an empty cache: one compiles, the others wait on the compile lock and
+    then load what it cached (without the lock each finds the cache empty and compiles)."""
+    import subprocess
+
+    env = probe_env(tmp_path, tmp_path / "drivers")
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", PROBE],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(3)
+    ]
+    outs = [proc.communicate(timeout=600) for proc in procs]
+    assert [proc.returncode for proc in procs] == [0, 0, 0], outs
+    compiled = [out for out, err in outs if "compiling the simulator's step" in err]
+    assert len(compiled) == 1, outs
+    assert compiled[0].split() == ["0", "1"]
+    loaded = [out.split() for out, err in outs if "compiling the simulator's step" not in err]
+    assert loaded == [["1", "0"], ["1", "0"]]

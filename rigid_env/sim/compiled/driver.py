@@ -36,6 +36,7 @@ import numpy as np
 from ..state import ORIENTATION_TOLERANCE
 from . import layout
 from .cache import sources_hash
+from .first_call import first_call
 from .registry import ForceKernel, Kernel
 from .steps import BODY_TORQUE
 
@@ -267,6 +268,7 @@ class Driver:
         self._pool = None
         self._last = None
         self._entry = None
+        self._called = False  # the first call compiles or loads (``first_call``)
         self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
         self._one_step_counts = np.empty((1, 3))
 
@@ -330,8 +332,19 @@ class Driver:
         return x, q, v, w, report, bad, counts
 
     def _dispatch(self, args, steps) -> tuple[int, int, int]:
-        """The step through numba's dispatcher (which compiles or loads it on the first call),
-        or over threads; a serial driver then calls its compiled entry point directly."""
+        """The step through numba's dispatcher (which compiles or loads it on the first call,
+        under the cache's compile lock: ``first_call``), or over threads; a serial driver then
+        calls its compiled entry point directly."""
+        if not self._called:
+            what = "stages " + ", ".join(dict.fromkeys(k.name for k in self.kernels))
+            kind = "contacts" if self.slots else "free"
+            bad = first_call(
+                self.module.step, lambda: self._serial(args, steps), cache_dir(), kind, what
+            )
+            self._called = True
+            if not self.threads:
+                self._entry = _entry_point(self.module.step)
+            return bad
         if self.threads:
             return (
                 self._threaded(args, steps) if args[0].shape[0] > 1 else self._serial(args, steps)

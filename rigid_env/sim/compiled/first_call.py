@@ -1,0 +1,131 @@
+"""A driver's first call: one process compiles, the others wait and load; one line says so.
+
+numba compiles a driver's ``step`` (and every kernel it calls) on its first call and caches the
+machine code on disk. Two hazards come with processes that start together on an empty cache
+(async vector envs, ``SubprocVecEnv``, Ray trials):
+
+- each compiles the same code, so four processes on two cores take four compiles' time;
+- numba's cache is an index file (key → data file name) and numbered data files, each written
+  atomically but not together (``numba.core.caching.IndexDataCacheFile.save``: read the index,
+  pick the first free number, write the index, then the data). Two processes saving two
+  overloads of one function at once can both pick ``.1.nbc``; the index then names one
+  overload's key and the file holds the other's machine code, which a later process loads
+  without a check and runs with the wrong signature.
+
+So every first call of a driver runs under one lock per cache directory (``fcntl.flock`` on
+``compile.lock``, released by the kernel if the holder dies): compiles and cache writes of this
+package never overlap, and a process that waited finds the code the holder cached and loads it
+in about a second. Only the first call takes the lock; later calls never touch it.
+
+A compile of more than a second or so is announced before it starts, on the logger
+``rigid_env.compile`` at WARNING level (Python's last-resort handler prints it to stderr when
+logging is not configured; ``logging.getLogger("rigid_env.compile").setLevel(logging.ERROR)``
+silences it), with how long the last compile of that kind took here (``compile_times.json`` in
+the cache directory) or, the first time, the figure measured by the bench.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import time
+from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # Windows: no lock (compiles may then overlap, as numba's own)
+    fcntl = None  # type: ignore[assignment]
+
+LOG = logging.getLogger("rigid_env.compile")
+LOCK_NAME = "compile.lock"
+TIMES_NAME = "compile_times.json"
+# First compiles with empty caches on 2 cores, from the bench's compile run (README, Limits):
+# what a user is told before the first compile of a kind on a machine.
+USUAL_SECONDS = {"contacts": 60.0, "free": 5.0}
+
+
+def is_cached(dispatcher) -> bool:
+    """Whether numba's disk cache holds a fresh entry for the dispatcher's function (its index
+    loads with the current source stamp and names at least one overload). False when numba's
+    internals differ from what this expects: a notice too many, never a missing one."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 (any internal difference: say it compiles)
+        return False
+
+
+@contextlib.contextmanager
+def compile_lock(directory: Path, what: str):
+    """Hold the cache directory's compile lock; if another process holds it, say so and wait."""
+    if fcntl is None:
+        yield
+        return
+    with open(directory / LOCK_NAME, "a+b") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            LOG.warning(
+                "rigid_env: waiting for another process that is compiling the simulator "
+                "(%s; lock %s); this process then loads what it cached",
+                what,
+                directory / LOCK_NAME,
+            )
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def first_call(dispatcher, call, directory: Path, kind: str, what: str):
+    """``call()`` (the dispatcher's first call) under the compile lock, announced if it is
+    going to compile; the compile's duration is recorded for the next announcement of
+    ``kind`` ("contacts" or "free")."""
+    with compile_lock(directory, what):
+        if is_cached(dispatcher):
+            return call()
+        LOG.warning(
+            "rigid_env: compiling the simulator's step for %s, once (%s); later processes "
+            "load it from the cache in %s",
+            what,
+            _usual(directory, kind),
+            directory,
+        )
+        start = time.perf_counter()
+        result = call()
+        _record(directory, kind, time.perf_counter() - start)
+        return result
+
+
+def _usual(directory: Path, kind: str) -> str:
+    seconds = _times(directory).get(kind)
+    if seconds is None:
+        return f"about {USUAL_SECONDS[kind]:.0f} s with empty caches on 2 cores"
+    return f"it took {seconds:.0f} s the last time here"
+
+
+def _times(directory: Path) -> dict:
+    try:
+        data = json.loads((directory / TIMES_NAME).read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _record(directory: Path, kind: str, seconds: float) -> None:
+    """Write the duration (atomically: a reader never sees half a file); a failure to write it
+    costs only the next notice's figure."""
+    times = _times(directory)
+    times[kind] = round(seconds, 1)
+    tmp = directory / f"{TIMES_NAME}.{os.getpid()}.tmp"
+    try:
+        tmp.write_text(json.dumps(times))
+        os.replace(tmp, directory / TIMES_NAME)
+    except OSError:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+__all__ = ["LOG", "compile_lock", "first_call", "is_cached"]
