@@ -221,6 +221,38 @@ def test_box_dropped_flat_onto_a_box_lands_without_spinning():
     np.testing.assert_allclose(state.linear_velocity, 0.0, atol=1e-12)
 
 
+@pytest.mark.parametrize(("eps", "top_mass"), [(0.5, 1.0), (0.8, 3.0)])
+def test_box_dropped_on_a_resting_box_rebounds_as_from_a_fixed_support(eps, top_mass):
+    # The lower box rests on the ground: for the upper box's impact it is a fixed support (its
+    # ground contacts hold through the event), so the upper box leaves with ε times its impact
+    # speed, whatever the masses, and its apex above the impact is ε² times its drop; the lower
+    # box stays. The drop is swept over one step (4 phases), and the bound per bounce is the
+    # bouncing ball's (test_contact_laws: g Δt²/4, from the step after the impact and the
+    # apex's sampling). The lower box: the resting bound of this module's docstring.
+    dt, h, phases = 1e-3, 0.2, 4
+    bodies = [sim.Body.box(HALF, 1.0), sim.Body.box(HALF, top_mass)]
+    scene = sim.Scene(
+        bodies, dt, gravity=GRAVITY, ground=sim.Ground(0.3, 0.5), contacts=sim.Material(eps, 0.5)
+    )
+    t_hit = np.sqrt(2 * h / G) + dt * np.arange(phases) / phases
+    drop = 0.5 * G * t_hit**2
+    position = np.zeros((phases, 2, 3))
+    position[:, 0, 2] = 0.2
+    position[:, 1, 2] = 0.6 + drop
+    state = scene.initial_state(position=position, batch_shape=(phases,))
+    start = state.copy()
+    z = []
+    for _ in range(int((t_hit.max() + 2 * eps * np.sqrt(2 * h / G)) / dt) + 20):
+        state = scene.step(state)
+        z.append(state.position[:, 1, 2] - 0.6)
+        np.testing.assert_allclose(state.position[:, 0], start.position[:, 0], rtol=0, atol=1e-12)
+    z = np.array(z)
+    for p in range(phases):
+        after = z[int(t_hit[p] / dt) + 1 :, p]
+        assert after.min() >= -1e-12  # it bounced at once, and did not sink into the box
+        assert abs(after.max() - eps**2 * drop[p]) <= G * dt**2 / 4
+
+
 def _space(eps, mu, offset, masses=(1.0, 2.0)):
     bodies = [sim.Body.box(HALF, m) for m in masses]
     scene = sim.Scene(bodies, 1e-3, contacts=sim.Material(eps, mu, 0.0))

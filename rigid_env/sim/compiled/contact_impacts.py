@@ -93,8 +93,9 @@ def restitute(e, st, d):
     o += 6 * c
     a_nn = block(buf, o, c, c)
     work = buf[o + c * c :]
-    flags = np.zeros(3 * c, np.bool_)
-    struck, eligible, hit = flags[:c], flags[c : 2 * c], flags[2 * c :]
+    flags = np.zeros(4 * c, np.bool_)
+    struck, eligible, hit = flags[:c], flags[c : 2 * c], flags[2 * c : 3 * c]
+    loaded = flags[3 * c :]  # the supports that carried a load before the events
     none[:] = 0.0
     for b in range(n):
         for j in range(3):
@@ -160,6 +161,12 @@ def restitute(e, st, d):
                 work,
             ):
                 report[e, CAPPED] = 1.0
+            # The loaded supports hold through every event; the closing contacts' normal
+            # acceleration is the one the supports leave (restitution.resolve_impacts).
+            for i in range(c):
+                loaded[i] = cs[i, IMPULSE] > 0.0 and not eligible[i]
+                vn1 = contact_velocity(cs, i, owner[i], u, 0)
+                half[i] = 0.5 * (vn1 - contact_velocity(cs, i, owner[i], u0, 0))
             continue
         if events >= max_impacts:
             report[e, CAPPED] = 1.0
@@ -193,7 +200,8 @@ def restitute(e, st, d):
         for i in range(c):
             struck[i] = struck[i] or hit[i]
             if not hit[i]:
-                goal[i] = -math.inf
+                g = cs[i, PATH_GAP]
+                goal[i] = (-g / dt if g > 0 else 0.0) if loaded[i] else -math.inf
             lam[i] = 0.0
         if not _event(
             st,

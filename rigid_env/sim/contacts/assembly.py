@@ -36,6 +36,7 @@ class Layout:
         self.n_bodies = n
         self.ground, self.pairs = ground, pairs
         a, b, mu, eps, thr = [], [], [], [], []
+        round_pairs: list[np.ndarray] = []
         self.n_ground = 0
         if ground is not None:
             self.ground_bodies = ground.bodies
@@ -52,7 +53,8 @@ class Layout:
                 lst.append(np.full(self.n_ground, val))
         if pairs is not None:
             m = model.contacts
-            for pa, pb, _, slots in pairs.groups:
+            for (pa, pb, _, slots), kind in zip(pairs.groups, pairs.kinds, strict=True):
+                round_pairs.append(np.full(len(pa) * slots, kind == "sphere_sphere"))
                 a.append(np.repeat(pa, slots))
                 b.append(np.repeat(pb, slots))
                 size = len(pa) * slots
@@ -63,6 +65,8 @@ class Layout:
                 ):
                     lst.append(np.full(size, val))
         self.a, self.b = np.concatenate(a), np.concatenate(b)
+        # Per pair slot: a sphere–sphere contact, whose normal follows the centres (``moved``).
+        self.round_pairs = np.concatenate(round_pairs) if round_pairs else np.zeros(0, bool)
         # Manifold of each contact: one per body on the ground, one per body pair.
         self.manifold = np.where(self.b < 0, self.a, n + n * self.a + np.maximum(self.b, 0))
         self.mu, self.eps = np.concatenate(mu), np.concatenate(eps)
@@ -158,10 +162,42 @@ class Rows:
         )
 
     def moved(self, layout, u, shift) -> Rows:
-        """The rows after the bodies translated by ``shift`` (N, n, 3) (pairs' arms only)."""
+        """The rows after the bodies translated by ``shift`` (N, n, 3) (pairs' arms only).
+
+        A sphere–sphere contact's normal is the line of centres at that instant: detected at
+        the step's start, xa − xb = (ra + rb + d) n (``pairs.sphere_sphere``), so after the
+        shift d' = xa − xb + Δshift and n' = d'/|d'|, with the arms −ra n' and rb n' and the
+        points |d'| − ra − rb apart along n'. The start's normal at the moved points would
+        give the impulse a moment about both centres (spurious spin) and tilt the exit
+        directions, by an angle of the order of the relative travel over the distance of the
+        centres. Other pairs keep their detected normal (a face's normal turns only with its
+        body, by ω times the event's time)."""
         if self.arm_b is None:
             return self
-        return assemble(layout, self.q, u, self.arm_a, self.arm_b, self.normal, self.gap, shift)
+        normal, arm_a, arm_b, apart = self.normal, self.arm_a, self.arm_b, None
+        round_pairs = layout.round_pairs
+        if round_pairs.any():
+            sl = layout.pair_slice
+            ra = np.linalg.norm(arm_a[:, sl][:, round_pairs], axis=-1, keepdims=True)
+            rb = np.linalg.norm(arm_b[:, round_pairs], axis=-1, keepdims=True)
+            n0 = normal[:, sl][:, round_pairs]
+            rel = (shift[:, layout.pa] - shift[:, layout.pb])[:, round_pairs]
+            centres = (ra + rb + self.gap[:, sl][:, round_pairs, None]) * n0 + rel
+            dist = np.linalg.norm(centres, axis=-1, keepdims=True)
+            n1 = np.where(dist > 1e-12, centres / np.where(dist > 1e-12, dist, 1.0), n0)
+            normal, arm_a, arm_b = np.array(normal), np.array(arm_a), np.array(arm_b)
+            pair_normal, pair_arm_a = normal[:, sl], arm_a[:, sl]
+            pair_normal[:, round_pairs] = n1
+            pair_arm_a[:, round_pairs] = -ra * n1
+            normal[:, sl], arm_a[:, sl] = pair_normal, pair_arm_a
+            arm_b[:, round_pairs] = rb * n1
+            apart = pair_apart(layout, self.gap, self.normal, shift)
+            apart[:, round_pairs] = (dist - ra - rb) * n1
+        rows = assemble(layout, self.q, u, arm_a, arm_b, normal, self.gap, shift, apart)
+        # The detection's own arms and normals stay the rows' record (what ``moved`` starts
+        # from, and the separation's normals).
+        rows.normal, rows.arm_a, rows.arm_b = self.normal, self.arm_a, self.arm_b
+        return rows
 
     @property
     def normal_delassus(self) -> np.ndarray:
@@ -200,10 +236,21 @@ def scaled_velocity(layout, u, scale):
     return np.concatenate((zv, zw), axis=-1).reshape(len(u), -1, 1)
 
 
-def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap, shift=None) -> Rows:
+def pair_apart(layout: Layout, gap, normal, shift=None):
+    """p_a − p_b of each pair contact (N, P, 3): gap n at the detection, plus the relative
+    translation ``shift`` (N, n, 3) of the two bodies since."""
+    sl = layout.pair_slice
+    apart = np.where(gap[:, sl] < FAR_GAP, gap[:, sl], 0.0)[..., None] * normal[:, sl]
+    if shift is not None:
+        apart = apart + shift[:, layout.pa] - shift[:, layout.pb]
+    return apart
+
+
+def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap, shift=None, apart=None) -> Rows:
     """The rows of contacts detected at orientations q (N, n, 4); t₁ follows the sliding of
     the velocities u (N, n, 6). ``shift`` (N, n, 3): the bodies' translation since the
-    detection (an impact's time into the step); the rows keep the detected arms and gaps."""
+    detection (an impact's time into the step); the rows keep the detected arms and gaps.
+    ``apart``: the pair contacts' p_a − p_b, if not ``pair_apart``'s (``Rows.moved``)."""
     raw_a, raw_b = arm_a, arm_b
     if arm_b is not None:
         # Both bodies of a pair take their impulses at one point, the midpoint of the two
@@ -211,9 +258,8 @@ def assemble(layout: Layout, q, u, arm_a, arm_b, normal, gap, shift=None) -> Row
         # normal or friction, has a net moment, and angular momentum is conserved at a
         # speculative contact (gap > 0) and at an impact part-way through the step.
         sl = layout.pair_slice
-        apart = np.where(gap[:, sl] < FAR_GAP, gap[:, sl], 0.0)[..., None] * normal[:, sl]
-        if shift is not None:
-            apart = apart + shift[:, layout.pa] - shift[:, layout.pb]
+        if apart is None:
+            apart = pair_apart(layout, gap, normal, shift)
         arm_a = np.array(arm_a)
         arm_a[:, sl] -= 0.5 * apart
         arm_b = arm_b + 0.5 * apart

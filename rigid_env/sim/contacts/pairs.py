@@ -88,6 +88,7 @@ class PairContacts:
                         f"not {type(si).__name__}–{type(sj).__name__} (bodies {i}, {j})"
                     )
         self.groups = []
+        self.kinds: list[str] = []  # per group, its kind ("sphere_sphere", ...)
         for kind, pairs in groups.items():
             if not pairs:
                 continue
@@ -110,6 +111,7 @@ class PairContacts:
                 )
                 slots = BOX_BOX_SLOTS
             self.groups.append((a, b, fn, slots))
+            self.kinds.append(kind)
         self.n_pairs = sum(len(g[0]) for g in self.groups)
 
     def detect(self, x, q):

@@ -15,10 +15,16 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    (``v_n ≥ −d/Δt``, ``v_n ≥ 0`` touching; the impact contacts out of play); its impulses
    count as the contacts' impulse (the friction budget of the inelastic solve). A box at rest
    on an edge whose far corners strike within the step pivots on the edge until they do,
-   instead of sinking through it.
+   instead of sinking through it. The supports act over the whole step, as a force would, so
+   the closing contacts' normal acceleration (``s`` below) is taken after them.
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
-   only, the other contacts free), solved by ``gauss_seidel``. The bodies' velocities change,
-   so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
+   only), solved by ``gauss_seidel``, together with the *loaded* supports (those that carried
+   an impulse in step 1), which hold as they did: v_n⁺ ≥ 0 touching, ≥ −d/Δt at a gap d. A box
+   dropped on a box resting on the ground meets a fixed support: it leaves with ε times its
+   impact speed and the lower box stays, instead of being driven into the ground. The other
+   contacts are free in the event: unloaded contacts pass an impulse on only by an impact of
+   their own, in its order (the touching balls of a Newton's cradle in space). The bodies'
+   velocities change, so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
    moves, reaches the third, …) and the loop goes on until no impact falls within the step
    (or ``max_impacts``, reported).
 
@@ -96,13 +102,20 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings, q):
     s = 0.5 * (vn1 - vn0)
     u = np.array(u1)
     struck = np.zeros((size, c), bool)
+    loaded = np.zeros((size, c), bool)  # the supports that carried a load before the events
     idx = np.arange(size)
+    round_slots = np.zeros(c, bool)  # the sphere–sphere contacts (``round_closing``)
+    round_slots[layout.pair_slice] = layout.round_pairs
     supports = True  # the first pass holds the supports (module docstring), then events
     for _ in range(settings.max_impacts + 2):
         sub = rows.take(idx) if len(idx) < size else rows
         vn = sub.velocity(u[idx], layout)[..., 0]
         g = gap[idx]
         close = np.maximum(g, 0.0) / np.where(vn < 0, -vn, 1.0)  # time to close
+        if round_slots.any():  # sphere pairs: along the line of centres, exactly
+            g[:, round_slots], vn[:, round_slots], close[:, round_slots] = round_closing(
+                layout, sub, u[idx], path[idx]
+            )
         at = np.minimum(elapsed[idx][:, None] + close, dt)
         speed, target = impact_targets(vn, s[idx], at, layout.eps, dt)
         eligible = (layout.eps > 0) & (vn < 0) & (speed > layout.threshold) & ~struck[idx]
@@ -120,6 +133,11 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings, q):
             u[idx] += alpha[:, None, None] * du
             impulse[idx] += alpha[:, None] * lam_n
             capped[idx] |= ~done
+            loaded[idx] = (alpha[:, None] * lam_n > 0) & ~eligible
+            # The supports act over the whole step, as a force would: the closing contacts'
+            # normal acceleration is the one they leave (a box struck on a box resting on the
+            # ground closes at g, not at the zero relative acceleration of two falling boxes).
+            s[idx] = 0.5 * (rows.take(idx).velocity(u[idx], layout)[..., 0] - vn0[idx])
             continue
         if events[idx].max(initial=0) >= settings.max_impacts:
             capped[idx[going]] = True
@@ -128,9 +146,16 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings, q):
         idx, vn, tau, target, g = idx[keep], vn[keep], tau[keep], target[keep], g[keep]
         eligible, first = eligible[keep], first[keep]
         g = g + first[:, None] * vn
-        gap[idx] = g
         elapsed[idx] += first
         path[idx] += first[:, None, None] * u[idx][..., :3]
+        if round_slots.any():  # the sphere pairs' normal velocities and targets at the touch
+            g_r, vn_r, close_r = round_closing(layout, rows.take(idx), u[idx], path[idx])
+            at_r = np.minimum(elapsed[idx][:, None] + close_r, dt)
+            g[:, round_slots], vn[:, round_slots] = g_r, vn_r
+            target[:, round_slots] = impact_targets(
+                vn_r, s[idx][:, round_slots], at_r, layout.eps[round_slots], dt
+            )[1]
+        gap[idx] = g
         turn = quat_exp(first[:, None, None] * u[idx][..., 3:])
         orientation[idx] = quat_multiply(turn, orientation[idx])
         # The impulses act where the bodies are now (pairs: the features' midpoint there).
@@ -144,13 +169,50 @@ def resolve_impacts(layout, rows, u0, u1, dt, settings, q):
         struck_manifold = (hit.astype(float) @ same) > 0
         hit |= eligible & struck_manifold & (tau < (first + dt)[:, None])
         struck[idx] |= hit
-        goal = np.where(hit, target, _OUT)
+        # The loaded supports hold through the event as they held before it (v_n ≥ their
+        # target from the step's start, at the gap the event left them): a box resting on the
+        # ground is struck from above as a fixed support, not as a free body.
+        held = loaded[idx] & ~hit
+        goal = np.where(hit, target, np.where(held, np.where(g > 0, -g / dt, 0.0), _OUT))
         du, lam_n, alpha, done = _event(layout, sub, u[idx], vn, goal, settings)
         u[idx] += alpha[:, None, None] * du
         impulse[idx] += alpha[:, None] * lam_n
         capped[idx] |= ~done
         events[idx] += 1
     return u, impulse, events, capped, Path(path, elapsed, gap, orientation)
+
+
+def round_closing(layout, rows, u, shift):
+    """Gap, normal velocity and time to close (N, R) of the sphere–sphere contacts after the
+    bodies translated by ``shift`` (N, n, 3), at velocities u (N, n, 6).
+
+    The centres' offset d = (ra + rb + gap₀) n₀ + Δshift (``Rows.moved``) moves at the
+    centres' relative velocity w (a sphere's spin moves its contact point only tangentially):
+    the spheres touch when |d + τ w| = R = ra + rb, the smaller root of
+    |w|² τ² + 2 d·w τ + |d|² − R² = 0, taken as 2c / (−b + √(b² − 4ac)) (no cancellation
+    when the gap is small). The linearised d + τ v_n of the other contacts misses that instant
+    by (v_t τ)² / 2R, which turns the normal by v_t τ / R: an oblique impact's exit velocities
+    then depend on its phase within the step. No real root (a miss) or moving apart: never."""
+    sl = layout.pair_slice
+    m = layout.round_pairs
+    ra = np.linalg.norm(rows.arm_a[:, sl][:, m], axis=-1)
+    rb = np.linalg.norm(rows.arm_b[:, m], axis=-1)
+    radius = ra + rb
+    pa, pb = layout.pa[m], layout.pb[m]
+    d = (radius + rows.gap[:, sl][:, m])[..., None] * rows.normal[:, sl][:, m]
+    d = d + shift[:, pa] - shift[:, pb]
+    w = u[:, pa, :3] - u[:, pb, :3]
+    dist = np.linalg.norm(d, axis=-1)
+    gap = dist - radius
+    vn = np.sum(d * w, axis=-1) / np.where(dist > 1e-12, dist, 1.0)
+    a = np.sum(w * w, axis=-1)
+    b = 2.0 * np.sum(d * w, axis=-1)
+    c = dist * dist - radius * radius
+    disc = b * b - 4.0 * a * c
+    meets = (b < 0) & (disc >= 0)  # approaching, and the line passes within R
+    root = 2.0 * np.maximum(c, 0.0) / np.where(meets, -b + np.sqrt(np.maximum(disc, 0.0)), 1.0)
+    close = np.where(meets, np.where(gap > 0, root, 0.0), np.inf)
+    return gap, vn, close
 
 
 @dataclass
