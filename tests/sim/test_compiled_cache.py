@@ -148,7 +148,7 @@ def test_a_compile_is_announced_once_and_a_load_is_not(tmp_path):
 
 
 def test_processes_that_start_together_compile_once(tmp_path):
-    """Three processes on an empty cache: one compiles, the others wait on the compile lock and
+    """Three processes on an empty cache: one compiles, the others wait on the driver's lock and
     then load what it cached (without the lock each finds the cache empty and compiles)."""
     import subprocess
 
@@ -170,3 +170,27 @@ def test_processes_that_start_together_compile_once(tmp_path):
     assert compiled[0].split() == ["0", "1"]
     loaded = [out.split() for out, err in outs if "compiling the simulator's step" not in err]
     assert loaded == [["1", "0"], ["1", "0"]]
+
+
+def test_numbas_index_and_data_files_are_written_under_the_directory_lock(tmp_path):
+    """``cache.install`` wraps numba's ``IndexDataCacheFile.save`` (and ``load``) in a lock per
+    cache directory: while another holder has it, a save writes nothing; released, the save
+    completes with the index naming its data file."""
+    import fcntl
+    import threading
+
+    from numba.core import caching
+
+    assert cache.install()
+    files = caching.IndexDataCacheFile(str(tmp_path), "probe", ("stamp",))
+    with open(tmp_path / "index.lock", "a+b") as holder:
+        fcntl.flock(holder, fcntl.LOCK_EX)
+        saver = threading.Thread(target=files.save, args=(("key",), b"machine code"))
+        saver.start()
+        saver.join(timeout=0.5)
+        assert saver.is_alive(), "the save went ahead while the lock was held"
+        assert not (tmp_path / "probe.nbi").exists()
+        fcntl.flock(holder, fcntl.LOCK_UN)
+    saver.join(timeout=60)
+    assert not saver.is_alive()
+    assert files.load(("key",)) == b"machine code"

@@ -75,7 +75,52 @@ def _install() -> bool:
         return False
     if not any(getattr(c, "rigid_env_locator", False) for c in classes):
         classes.insert(0, _locator_class(caching))
+    _lock_index_files(caching)
     return True
+
+
+def _lock_index_files(caching) -> None:
+    """Make numba's cache index and data files consistent across processes.
+
+    ``IndexDataCacheFile.save`` reads the index, picks the first free data file number, writes
+    the index, then the data file; ``load`` reads the index, then the data file it names. Each
+    file is replaced atomically, but not the pair: two processes saving two overloads of one
+    function at once can both pick ``.1.nbc`` (the index then names one key and the file holds
+    the other's machine code), and a reader between a save's two writes can load a stale data
+    file under a fresh index entry. Both run here under one lock per cache directory
+    (``fcntl.flock``, held for the file operations only, milliseconds), so every process sees
+    an index and data files that belong together. Without ``fcntl`` (Windows) nothing changes.
+    """
+    cls = getattr(caching, "IndexDataCacheFile", None)
+    if cls is None or getattr(cls, "rigid_env_locked", False):
+        return
+    try:
+        import fcntl
+    except ImportError:
+        return
+    import functools
+    import os
+
+    def locked(method):
+        @functools.wraps(method)
+        def wrapper(self, *args, **kwargs):
+            path = os.path.join(self._cache_path, "index.lock")
+            try:
+                handle = open(path, "a+b")  # noqa: SIM115 (held across the call)
+            except OSError:  # a read-only cache directory: numba's own behaviour
+                return method(self, *args, **kwargs)
+            with handle:
+                fcntl.flock(handle, fcntl.LOCK_EX)
+                try:
+                    return method(self, *args, **kwargs)
+                finally:
+                    fcntl.flock(handle, fcntl.LOCK_UN)
+
+        return wrapper
+
+    cls.save = locked(cls.save)
+    cls.load = locked(cls.load)
+    cls.rigid_env_locked = True
 
 
 def _locator_class(caching):

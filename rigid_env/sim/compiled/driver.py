@@ -333,13 +333,18 @@ class Driver:
 
     def _dispatch(self, args, steps) -> tuple[int, int, int]:
         """The step through numba's dispatcher (which compiles or loads it on the first call,
-        under the cache's compile lock: ``first_call``), or over threads; a serial driver then
+        under the driver's lock: ``first_call``), or over threads; a serial driver then
         calls its compiled entry point directly."""
         if not self._called:
             what = "stages " + ", ".join(dict.fromkeys(k.name for k in self.kernels))
             kind = "contacts" if self.slots else "free"
             bad = first_call(
-                self.module.step, lambda: self._serial(args, steps), cache_dir(), kind, what
+                self.module.step,
+                lambda: self._serial(args, steps),
+                cache_dir(),
+                self.module.__name__,
+                kind,
+                what,
             )
             self._called = True
             if not self.threads:

@@ -12,10 +12,13 @@ machine code on disk. Two hazards come with processes that start together on an 
   overload's key and the file holds the other's machine code, which a later process loads
   without a check and runs with the wrong signature.
 
-So every first call of a driver runs under one lock per cache directory (``fcntl.flock`` on
-``compile.lock``, released by the kernel if the holder dies): compiles and cache writes of this
-package never overlap, and a process that waited finds the code the holder cached and loads it
-in about a second. Only the first call takes the lock; later calls never touch it.
+So every first call of a driver runs under a lock of its own (``fcntl.flock`` on
+``<driver>.lock`` in the cache directory, released by the kernel if the holder dies): a driver
+compiles once, and a process that waited finds the code the holder cached and loads it in about
+a second; drivers of other compositions compile meanwhile, in parallel. The second hazard is
+closed below the drivers, for every function this package compiles: numba's index and data
+files are read and written under one short lock per cache directory (``cache.py``). Only the
+first call takes the driver's lock; later calls never touch it.
 
 A compile of more than a second or so is announced before it starts, on the logger
 ``rigid_env.compile`` at WARNING level (Python's last-resort handler prints it to stderr when
@@ -39,7 +42,6 @@ except ImportError:  # Windows: no lock (compiles may then overlap, as numba's o
     fcntl = None  # type: ignore[assignment]
 
 LOG = logging.getLogger("rigid_env.compile")
-LOCK_NAME = "compile.lock"
 TIMES_NAME = "compile_times.json"
 # First compiles with empty caches on 2 cores, from the bench's compile run (README, Limits):
 # what a user is told before the first compile of a kind on a machine.
@@ -57,20 +59,20 @@ def is_cached(dispatcher) -> bool:
 
 
 @contextlib.contextmanager
-def compile_lock(directory: Path, what: str):
-    """Hold the cache directory's compile lock; if another process holds it, say so and wait."""
+def compile_lock(path: Path, what: str):
+    """Hold the lock file ``path``; if another process holds it, say so and wait."""
     if fcntl is None:
         yield
         return
-    with open(directory / LOCK_NAME, "a+b") as handle:
+    with open(path, "a+b") as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             LOG.warning(
-                "rigid_env: waiting for another process that is compiling the simulator "
+                "rigid_env: waiting for another process that is compiling the same step "
                 "(%s; lock %s); this process then loads what it cached",
                 what,
-                directory / LOCK_NAME,
+                path,
             )
             fcntl.flock(handle, fcntl.LOCK_EX)
         try:
@@ -79,11 +81,11 @@ def compile_lock(directory: Path, what: str):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def first_call(dispatcher, call, directory: Path, kind: str, what: str):
-    """``call()`` (the dispatcher's first call) under the compile lock, announced if it is
-    going to compile; the compile's duration is recorded for the next announcement of
-    ``kind`` ("contacts" or "free")."""
-    with compile_lock(directory, what):
+def first_call(dispatcher, call, directory: Path, name: str, kind: str, what: str):
+    """``call()`` (the first call of the driver module ``name``'s dispatcher) under the
+    driver's lock, announced if it is going to compile; the compile's duration is recorded
+    for the next announcement of ``kind`` ("contacts" or "free")."""
+    with compile_lock(directory / f"{name}.lock", what):
         if is_cached(dispatcher):
             return call()
         LOG.warning(
