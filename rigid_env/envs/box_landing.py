@@ -119,7 +119,9 @@ facing the ground, int), ``target_face`` (index, int), ``energy`` (kinetic + gra
 m g z, J), ``contact_capped`` (the action periods of this episode in which a contact solve
 stopped at its cap instead of converging, int; see below), the reward terms ``reward_*`` (0 at a
 reset) and ``is_success`` (``bool``). With ``torque_scale_range``: ``torque_limit`` (the
-episode's, (3,), N m); with ``observation_noise``: ``observation_clean`` (the observation
+episode's, (3,), N m); with ``mass_scale_range``, ``inertia_scale_range``, ``friction_range``
+or ``restitution_range``: ``mass_scale``, ``inertia_scale``, ``friction`` or ``restitution``
+(the episode's, float); with ``observation_noise``: ``observation_clean`` (the observation
 without noise).
 
 A capped solve keeps the solver's last iterate for that physics step: contact impulses that
@@ -163,6 +165,10 @@ on the simulator's ``ContactSolverWarning``, and warns once per env instance
 | ``backend``              | ``None``         | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
 | ``contact_solver``       | ``CONTACT_SOLVER`` | the contact solve's ``rigid_env.sim.SolverSettings``; the default warm-starts an action's physics steps after its first from the previous step's impulses: the same tolerance as ``SolverSettings()``, for less work |
 | ``torque_scale_range``   | ``None``         | ``(low, high)``: each episode's torque limit is ``max_torque`` × s, s uniform in it (one s for the three axes), drawn at the reset |
+| ``mass_scale_range``     | ``None``         | ``(low, high)``: each episode's box is s times denser (mass and inertia × s), s uniform in it, drawn at the reset |
+| ``inertia_scale_range``  | ``None``         | ``(low, high)``: each episode's inertia × k (its mass moved outward), k uniform in it |
+| ``friction_range``       | ``None``         | ``(low, high)``: each episode's ground friction μ, uniform in it (≤ 10) |
+| ``restitution_range``    | ``None``         | ``(low, high)``: each episode's ground restitution ε, uniform in it (within [0, 1]); with any of these four, each env steps its own scene (one simulator call per env) |
 | ``observation_noise``    | ``None``         | ``{part: std}``: Gaussian noise added to those observation parts (std in the part's units, table above), clipped to the observation space; ``info["observation_clean"]`` keeps the observation without it |
 | ``render_mode``          | ``None``         | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 | ``width``, ``height``    | ``480``, ``480`` | frame size, pixels                                        |
@@ -317,6 +323,8 @@ class BoxLandingConfig(HoldTaskConfig):
     face_weight: float = 1.0
     bounce_weight: float = 0.5
     contact_solver: sim.SolverSettings = CONTACT_SOLVER
+    friction_range: tuple[float, float] | None = None
+    restitution_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -359,6 +367,16 @@ class BoxLandingConfig(HoldTaskConfig):
             put(name, at_most(positive_scalar(getattr(self, name), name), name, maximum, unit))
         for name in ("face_weight", "bounce_weight"):
             put(name, weight(getattr(self, name), name))
+        if self.friction_range is not None:
+            put(
+                "friction_range",
+                scalar_range(self.friction_range, "friction_range", maximum=MAX_FRICTION),
+            )
+        if self.restitution_range is not None:
+            put(
+                "restitution_range",
+                scalar_range(self.restitution_range, "restitution_range", maximum=1.0),
+            )
         if not isinstance(self.contact_solver, sim.SolverSettings):
             raise ValueError(
                 f"contact_solver must be a rigid_env.sim.SolverSettings, got {self.contact_solver!r}"
@@ -370,6 +388,11 @@ class BoxLandingTask(HoldTask):
 
     config_class = BoxLandingConfig
     config: BoxLandingConfig
+    RANDOMISED = {
+        **HoldTask.RANDOMISED,
+        "friction_range": "friction",
+        "restitution_range": "restitution",
+    }
     observation_bounds = OBSERVATION_BOUNDS
     task_reward_terms = ("reward_angle", "reward_bounce")
     start_options = (*STATE_FIELDS, "target_face")
@@ -394,9 +417,11 @@ class BoxLandingTask(HoldTask):
         self.warned_capped = False  # the once-per-env ContactCapWarning
         self._no_contact_report = np.zeros(n, dtype=bool)  # touched, for a scene without one
         self._touched = self._no_contact_report
+        for key, nominal in (("friction", cfg.friction), ("restitution", cfg.restitution)):
+            if key in self.episode_values:
+                self.episode_values[key][:] = nominal
         self._params = np.array(  # what landing_measure reads, in its order
             [
-                self.body.mass,
                 GRAVITY,
                 self.spin_scale,
                 VELOCITY_SCALE,
@@ -414,17 +439,31 @@ class BoxLandingTask(HoldTask):
         self._measure(self._all)
         self.touching = self._clearance < cfg.contact_tolerance
 
-    def build_scene(self) -> sim.Scene:
+    def build_scene(
+        self,
+        body: sim.Body | None = None,
+        friction: float | None = None,
+        restitution: float | None = None,
+    ) -> sim.Scene:
+        """The scene of the configured body and ground, or of an episode's (randomised)."""
         cfg = self.config
+        friction = cfg.friction if friction is None else friction
+        restitution = cfg.restitution if restitution is None else restitution
         return sim.Scene(
-            self.body,
+            self.body if body is None else body,
             cfg.dt,
             integrator=cfg.integrator,
             gravity=(0.0, 0.0, -GRAVITY),
-            ground=sim.Ground(restitution=cfg.restitution, friction=cfg.friction),
+            ground=sim.Ground(restitution=restitution, friction=friction),
             contact_solver=cfg.contact_solver,
             backend=cfg.backend,
         )
+
+    def episode_scene(self, i: int) -> sim.Scene:
+        values = self.episode_values
+        friction = values["friction"][i] if "friction" in values else None
+        restitution = values["restitution"][i] if "restitution" in values else None
+        return self.build_scene(self.episode_body(i), friction, restitution)
 
     # --- resets ---------------------------------------------------------------------------------
 
@@ -557,13 +596,20 @@ class BoxLandingTask(HoldTask):
         begins and ends within one physics step counts) for :meth:`_step_events`. A period
         with a capped contact solve is counted per env (``contact_capped``) and warned once
         (:mod:`~rigid_env.envs.contact_caps`)."""
-        self.state = contact_caps.step_quietly(
-            self.scene, self.state, body_torque=torque[:, None, :], steps=self.frame_skip
-        )
-        report = self.scene.report.get("contacts")
-        touched = None if report is None else report.touched
+        if self.scenes is None:
+            self.state = contact_caps.step_quietly(
+                self.scene, self.state, body_torque=torque[:, None, :], steps=self.frame_skip
+            )
+            report = self.scene.report.get("contacts")
+            touched = None if report is None else report.touched
+            capped = contact_caps.capped_mask(report)
+        else:
+            self.state, reports = self.step_scenes(torque, contact_caps.step_quietly)
+            contacts = [r["contacts"] for r in reports]  # a ground scene always reports
+            touched = np.concatenate([r.touched for r in contacts])
+            masks = [contact_caps.capped_mask(r) for r in contacts]
+            capped = np.concatenate([np.zeros(1, bool) if m is None else m for m in masks])
         self._touched = self._no_contact_report if touched is None else touched
-        capped = contact_caps.capped_mask(report)
         if capped is not None:
             self.contact_capped += capped
             if not self.warned_capped:
@@ -597,7 +643,8 @@ class BoxLandingTask(HoldTask):
             state.angular_velocity,
             self._face_normal,
             self.corners,
-            self.inertia,
+            self.masses,
+            self.inertias,
             self._params,
             self.prev_action,
             self._obs,

@@ -89,8 +89,9 @@ class BatchedTask(ABC):
     start_options: tuple[str, ...] = ()  # the keys reset(options=...) takes
 
     @abstractmethod
-    def build_scene(self) -> Any:
-        """The task's :class:`rigid_env.sim.Scene`, built from the validated configuration."""
+    def build_scene(self, *args: Any) -> Any:
+        """The task's :class:`rigid_env.sim.Scene`, built from the validated configuration (a
+        task with randomised physics takes an episode's body and materials as arguments)."""
 
     @abstractmethod
     def draw(self, rng: np.random.Generator) -> np.ndarray:

@@ -23,7 +23,7 @@ from gymnasium import spaces
 
 from .. import sim
 from . import kernels
-from .bodies import make_body
+from .bodies import MAX_MASS, make_body
 from .core import BatchedTask
 from .noise import noise_entries
 from .observations import observation_slices
@@ -51,6 +51,7 @@ MAX_SPIN = 1e3  # rad/s: initial spins and the observation's spin scale
 MAX_HOLD_TIME = 1e4  # s
 MAX_WEIGHT = 1e6  # every reward weight and the success bonus
 MAX_NOISE_STD = 10.0  # observation units (the parts are scaled to within about ±5)
+MAX_SCALE = 1e3  # the top of a randomised mass or inertia scale (and 1/it the bottom)
 
 Bounds = tuple[float | tuple[float, ...], float | tuple[float, ...]]
 
@@ -102,6 +103,8 @@ class HoldTaskConfig:
     # Randomisation and noise (off by default). Each range is drawn once per episode from the
     # reset's generator, after the start state's draws, so a default episode is unchanged.
     torque_scale_range: tuple[float, float] | None = None
+    mass_scale_range: tuple[float, float] | None = None
+    inertia_scale_range: tuple[float, float] | None = None
     observation_noise: Mapping[str, float] | None = None
     rigid_body: sim.Body = field(init=False, repr=False)
 
@@ -154,6 +157,21 @@ class HoldTaskConfig:
                     f"{MAX_TORQUE:g} N m, got {self.torque_scale_range!r}"
                 )
             put("torque_scale_range", (low, high))
+        for name in ("mass_scale_range", "inertia_scale_range"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            low, high = scalar_range(value, name, maximum=MAX_SCALE)
+            if low < 1 / MAX_SCALE:
+                raise ValueError(f"{name} must start at {1 / MAX_SCALE:g} or above, got {value!r}")
+            put(name, (low, high))
+        if self.mass_scale_range is not None:
+            at_most(
+                self.rigid_body.mass * self.mass_scale_range[1],
+                "mass_scale_range (mass × its high end)",
+                MAX_MASS,
+                " kg",
+            )
         if self.observation_noise is not None:
             put("observation_noise", self._noise(self.observation_noise))
 
@@ -207,8 +225,12 @@ class HoldTask(BatchedTask):
     ``_measure(index)``.
 
     A reset draws the start state (:meth:`draw_start`), then the episode's randomised
-    parameters (``torque_scale_range``: one uniform), from the env's generator; with no
-    randomisation nothing more is drawn, so the default episodes do not depend on it.
+    parameters (one uniform each, in the order of ``RANDOMISED`` among those configured),
+    from the env's generator; with no randomisation nothing more is drawn, so the default
+    episodes do not depend on it. The torque limit scales the action. A physical parameter
+    (mass, inertia, the ground's friction and restitution) makes the env's physics its own:
+    each env then steps its own scene, built at its reset from its draws (the simulator's
+    model is one per scene), one call per env instead of one for the batch.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
     off the state in one call, and the shared hold timer and reward terms are one more. Its
@@ -217,6 +239,12 @@ class HoldTask(BatchedTask):
     """
 
     config_class: ClassVar[type[HoldTaskConfig]] = HoldTaskConfig
+    # Config range → the ``info`` key of its per-episode value, in the order they are drawn.
+    RANDOMISED: ClassVar[dict[str, str]] = {
+        "torque_scale_range": "torque_limit",
+        "mass_scale_range": "mass_scale",
+        "inertia_scale_range": "inertia_scale",
+    }
     observation_bounds: ClassVar[Mapping[str, Bounds]]
     task_reward_terms: ClassVar[tuple[str, ...]]
 
@@ -281,7 +309,18 @@ class HoldTask(BatchedTask):
         n = self.num_envs
         # This episode's torque limit per env (N m per body axis): max_torque unless randomised.
         self.torque_limit = np.tile(self.max_torque, (n, 1))
-        self._random_draws = 0 if config.torque_scale_range is None else 1
+        # This episode's mass properties per env (what the measurements read).
+        self.masses = np.full(n, self.body.mass)
+        self.inertias = np.tile(self.inertia, (n, 1, 1))
+        self.randomised = [name for name in self.RANDOMISED if getattr(config, name) is not None]
+        self._random_draws = len(self.randomised)
+        self.episode_values: dict[str, np.ndarray] = {  # the physical draws, per env
+            self.RANDOMISED[name]: np.ones(n)
+            for name in self.randomised
+            if name != "torque_scale_range"
+        }
+        # One scene per env when a physical parameter is randomised (``reset_envs``).
+        self.scenes: list[sim.Scene] | None = [self.scene] * n if self.episode_values else None
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
@@ -332,9 +371,43 @@ class HoldTask(BatchedTask):
         """Step the physics for one action: ``frame_skip`` steps in one simulator call, the
         torque fixed in the body frame (the integrator turns it into the world at each of its
         load evaluations). Tasks with sensors to latch at every physics step override this."""
-        self.state = self.scene.step(
-            self.state, body_torque=torque[:, None, :], steps=self.frame_skip
+        if self.scenes is None:
+            self.state = self.scene.step(
+                self.state, body_torque=torque[:, None, :], steps=self.frame_skip
+            )
+        else:
+            self.state = self.step_scenes(torque)[0]
+
+    def step_scenes(
+        self, torque: np.ndarray, step: Any = None
+    ) -> tuple[sim.State, list[dict[str, Any]]]:
+        """One action of every env on its own scene (randomised physics): the new batched
+        state and each scene's ``report``. ``step(scene, state, body_torque, steps)`` steps
+        one env (default ``scene.step``)."""
+        assert self.scenes is not None
+        parts, reports = [], []
+        for i, scene in enumerate(self.scenes):
+            state = self.state[i : i + 1]
+            kwargs: dict[str, Any] = dict(
+                body_torque=torque[i : i + 1, None, :], steps=self.frame_skip
+            )
+            parts.append(
+                scene.step(state, **kwargs) if step is None else step(scene, state, **kwargs)
+            )
+            reports.append(scene.report)
+        arrays = (
+            np.concatenate(fields) for fields in zip(*(p.arrays() for p in parts), strict=True)
         )
+        return sim.State(*arrays), reports
+
+    def episode_body(self, i: int) -> sim.Body:
+        """Env ``i``'s body this episode: the mass scale s makes it s times denser (mass and
+        inertia × s), the inertia scale k moves mass outward (inertia × k)."""
+        return sim.Body(self.masses[i], self.inertias[i], self.body.shape)
+
+    def episode_scene(self, i: int) -> sim.Scene:
+        """Env ``i``'s scene this episode (``build_scene`` of its body and draws)."""
+        return self.build_scene(self.episode_body(i))
 
     # --- shared ---------------------------------------------------------------------------------
 
@@ -349,11 +422,21 @@ class HoldTask(BatchedTask):
         if self._random_draws:
             u = draws[:, -self._random_draws :]
             draws = draws[:, : -self._random_draws]
-            scale_range = self.config.torque_scale_range
-            assert scale_range is not None
-            low, high = scale_range
-            scale = low + (high - low) * u[:, 0]
-            self.torque_limit[index] = scale[:, None] * self.max_torque
+            for k, name in enumerate(self.randomised):
+                low, high = getattr(self.config, name)
+                value = low + (high - low) * u[:, k]
+                if name == "torque_scale_range":
+                    self.torque_limit[index] = value[:, None] * self.max_torque
+                else:
+                    self.episode_values[self.RANDOMISED[name]][index] = value
+            if self.scenes is not None:
+                values = self.episode_values
+                mass = values.get("mass_scale", np.ones(self.num_envs))[index]
+                inertia = values.get("inertia_scale", np.ones(self.num_envs))[index]
+                self.masses[index] = mass * self.body.mass
+                self.inertias[index] = (mass * inertia)[:, None, None] * self.inertia
+                for i in index:
+                    self.scenes[i] = self.episode_scene(int(i))
         self.reset_start(index, draws)
 
     def check_start(self, options: Mapping[str, Any], k: int) -> dict[str, Any]:
@@ -446,16 +529,20 @@ class HoldTask(BatchedTask):
             **{name: self.terms[:, k].copy() for k, name in enumerate(self.reward_terms)},
             "is_success": self.hold >= self.hold_steps,
         }
-        if self._random_draws:
+        if self.config.torque_scale_range is not None:
             info["torque_limit"] = self.torque_limit.copy()
+        for key, values in self.episode_values.items():
+            info[key] = values.copy()
         return info
 
     def single_info(self) -> dict[str, Any]:
         info = self._task_single_info()
         info.update(zip(self.reward_terms, self.terms[0].tolist(), strict=True))
         info["is_success"] = bool(self.hold[0] >= self.hold_steps)
-        if self._random_draws:
+        if self.config.torque_scale_range is not None:
             info["torque_limit"] = self.torque_limit[0].copy()
+        for key, values in self.episode_values.items():
+            info[key] = float(values[0])
         return info
 
     def status(self, i: int) -> str:

@@ -127,7 +127,7 @@ def reorient_measure(
 ) -> None:  # fmt: skip
     """Everything Reorient reads off a state, for the envs ``index`` (rows of the outputs
     not in it are left as they are). In: ``q`` (N, 1, 4), ``w`` (N, 1, 3)
-    world angular velocity, ``target`` (N, 4), ``inertia`` (3, 3) body axes, ``params`` =
+    world angular velocity, ``target`` (N, 4), ``inertia`` (N, 3, 3) body axes, ``params`` =
     [spin_scale, observation limit, angle_threshold, spin_threshold, angle_coef],
     ``prev_action`` (N, 3). Out: ``obs`` (N, 10) float32 [q_err (w >= 0), clip(Ω / spin_scale,
     ±limit), prev_action]; ``rot`` R(q); ``meas`` (N, 9) [Ω = Rᵀ ω (3), θ = 2 atan2(|q_err,v|,
@@ -165,9 +165,10 @@ def reorient_measure(
             obs[e, 7 + i] = prev_action[e, i]
         within[e] = angle < angle_threshold and spin < spin_threshold
         terms[e, 0] = -angle_coef * angle
-        mx = inertia[0, 0] * ox + inertia[0, 1] * oy + inertia[0, 2] * oz  # I Ω, body axes
-        my = inertia[1, 0] * ox + inertia[1, 1] * oy + inertia[1, 2] * oz
-        mz = inertia[2, 0] * ox + inertia[2, 1] * oy + inertia[2, 2] * oz
+        ie = inertia[e]
+        mx = ie[0, 0] * ox + ie[0, 1] * oy + ie[0, 2] * oz  # I Ω, body axes
+        my = ie[1, 0] * ox + ie[1, 1] * oy + ie[1, 2] * oz
+        mz = ie[2, 0] * ox + ie[2, 1] * oy + ie[2, 2] * oz
         m[5] = 0.5 * (ox * mx + oy * my + oz * mz)
         for i in range(3):
             m[6 + i] = r[i, 0] * mx + r[i, 1] * my + r[i, 2] * mz
@@ -175,16 +176,16 @@ def reorient_measure(
 
 @njit(cache=True)
 def landing_measure(
-    index: Arr, x: Arr, q: Arr, v: Arr, w: Arr, face_normal: Arr, corners: Arr, inertia: Arr,
-    params: Arr, prev_action: Arr, obs: Arr, rot: Arr, meas: Arr, ints: Arr, within: Arr,
-    terms: Arr,
+    index: Arr, x: Arr, q: Arr, v: Arr, w: Arr, face_normal: Arr, corners: Arr, mass: Arr,
+    inertia: Arr, params: Arr, prev_action: Arr, obs: Arr, rot: Arr, meas: Arr, ints: Arr,
+    within: Arr, terms: Arr,
 ) -> None:  # fmt: skip
     """Everything BoxLanding reads off a state, for the envs ``index`` (rows of the outputs
     not in it are left as they are). In: the state's (N, 1, ·) arrays,
     ``face_normal`` (N, 3) the target face's outward normal (body axes), ``corners`` (8, 3),
-    ``inertia`` (3, 3), ``params`` = [mass, gravity, spin_scale, velocity_scale, height_limit,
-    observation limit, contact_tolerance, face_threshold, speed_threshold, spin_threshold,
-    face_coef], ``prev_action`` (N, 3). Out: ``obs`` (N, 25) float32 in the order of the task's
+    ``mass`` (N,), ``inertia`` (N, 3, 3), ``params`` = [gravity, spin_scale, velocity_scale,
+    height_limit, observation limit, contact_tolerance, face_threshold, speed_threshold,
+    spin_threshold, face_coef], ``prev_action`` (N, 3). Out: ``obs`` (N, 25) float32 in the order of the task's
     observation parts; ``rot`` R(q); ``meas`` (N, 9) [Ω = Rᵀ ω (3), θ between the face normal
     and world −z (by atan2: arccos loses digits near 0), |Ω|, speed, height, clearance (the
     lowest corner's height), energy]; ``ints`` (N, 2) [corners in contact, the face nearest
@@ -192,11 +193,11 @@ def landing_measure(
     term, ``terms[:, 1]``, is ``count_touchdowns``'s, from the clearance written here).
 
     A corner's gap is z + (R c)_z, with world +z in body axes (Rᵀ e_z) being R's last row."""
-    mass, gravity, spin_scale, velocity_scale, height_limit, limit = (
-        params[0], params[1], params[2], params[3], params[4], params[5]
+    gravity, spin_scale, velocity_scale, height_limit, limit = (
+        params[0], params[1], params[2], params[3], params[4]
     )  # fmt: skip
     tolerance, face_threshold, speed_threshold, spin_threshold, face_coef = (
-        params[6], params[7], params[8], params[9], params[10]
+        params[5], params[6], params[7], params[8], params[9]
     )  # fmt: skip
     for e in index:
         r = rot[e]
@@ -247,11 +248,12 @@ def landing_measure(
             and spin < spin_threshold
         )
         terms[e, 0] = -face_coef * angle
-        mx = inertia[0, 0] * ox + inertia[0, 1] * oy + inertia[0, 2] * oz  # I Ω, body axes
-        my = inertia[1, 0] * ox + inertia[1, 1] * oy + inertia[1, 2] * oz
-        mz = inertia[2, 0] * ox + inertia[2, 1] * oy + inertia[2, 2] * oz
-        kinetic = mass * (ve[0] * ve[0] + ve[1] * ve[1] + ve[2] * ve[2]) + (
+        ie, me = inertia[e], mass[e]
+        mx = ie[0, 0] * ox + ie[0, 1] * oy + ie[0, 2] * oz  # I Ω, body axes
+        my = ie[1, 0] * ox + ie[1, 1] * oy + ie[1, 2] * oz
+        mz = ie[2, 0] * ox + ie[2, 1] * oy + ie[2, 2] * oz
+        kinetic = me * (ve[0] * ve[0] + ve[1] * ve[1] + ve[2] * ve[2]) + (
             ox * mx + oy * my + oz * mz
         )
         m[3], m[4], m[5], m[6], m[7] = angle, spin, speed, z, clearance
-        m[8] = 0.5 * kinetic + mass * gravity * z
+        m[8] = 0.5 * kinetic + me * gravity * z

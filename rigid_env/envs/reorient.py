@@ -106,8 +106,9 @@ and values that are not these, raise ``ValueError`` naming ``options[key]``:
 Every ``reset`` and ``step`` returns ``angle_error`` (θ, rad), ``spin`` (|Ω|, rad/s), ``energy``
 (kinetic, J), ``angular_momentum`` (world frame, (3,), kg m²/s, a fresh array), the reward
 terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``). With ``torque_scale_range``:
-``torque_limit`` (the episode's, (3,), N m); with ``observation_noise``:
-``observation_clean`` (the observation without noise).
+``torque_limit`` (the episode's, (3,), N m); with ``mass_scale_range`` or
+``inertia_scale_range``: ``mass_scale`` or ``inertia_scale`` (the episode's, float); with
+``observation_noise``: ``observation_clean`` (the observation without noise).
 
 ## Arguments
 
@@ -137,6 +138,8 @@ terms ``reward_*`` (0 at a reset) and ``is_success`` (``bool``). With ``torque_s
 | ``spin_scale``        | ``None``              | observation scale of Ω, rad/s; ``None``: ``spin_range`` high, at least 1 rad/s |
 | ``backend``           | ``None``              | the simulator's step (``rigid_env.sim.Scene``'s ``backend``): ``None`` reads ``RIGID_ENV_BACKEND``; ``"compiled-threads"`` splits a vector env's batch over the cores |
 | ``torque_scale_range``| ``None``              | ``(low, high)``: each episode's torque limit is ``max_torque`` × s, s uniform in it (one s for the three axes), drawn at the reset |
+| ``mass_scale_range``  | ``None``              | ``(low, high)``: each episode's body is s times denser (mass and inertia × s), s uniform in it, drawn at the reset |
+| ``inertia_scale_range``| ``None``              | ``(low, high)``: each episode's inertia × k (its mass moved outward), k uniform in it, drawn at the reset; with either, each env steps its own scene (one simulator call per env) |
 | ``observation_noise`` | ``None``              | ``{part: std}``: Gaussian noise added to those observation parts (std in the part's units, table above), clipped to the observation space; ``info["observation_clean"]`` keeps the observation without it |
 | ``render_mode``       | ``None``              | ``"human"`` or ``"rgb_array"`` (vector env: ``"rgb_array"``) |
 | ``width``, ``height`` | ``480``, ``480``      | frame size, pixels                                        |
@@ -272,10 +275,12 @@ class ReorientTask(HoldTask):
         self._meas = np.empty((n, 9))  # see kernels.reorient_measure
         self._measure(self._all)
 
-    def build_scene(self) -> sim.Scene:
+    def build_scene(self, body: sim.Body | None = None) -> sim.Scene:
+        """The scene of the configured body, or of ``body`` (an episode's, randomised)."""
         cfg = self.config
         # a free body only: no gravity, ground or springs
-        return sim.Scene(self.body, cfg.dt, integrator=cfg.integrator, backend=cfg.backend)
+        body = self.body if body is None else body
+        return sim.Scene(body, cfg.dt, integrator=cfg.integrator, backend=cfg.backend)
 
     # --- resets ---------------------------------------------------------------------------------
 
@@ -343,7 +348,7 @@ class ReorientTask(HoldTask):
             self.state.orientation,
             self.state.angular_velocity,
             self.target,
-            self.inertia,
+            self.inertias,
             self._params,
             self.prev_action,
             self._obs,
