@@ -363,3 +363,59 @@ def _timed_rollout(model: MjModel, inits: np.ndarray, nstep: int) -> tuple[np.nd
     start = time.perf_counter()
     _rollout.rollout(model, mujoco.MjData(model), inits, nstep=nstep, state=out)
     return out, time.perf_counter() - start
+
+
+# --- many boxes (``rigid_env.bench.many_bodies``) -----------------------------------------------
+
+
+def boxes_model(
+    count: int,
+    half_extents: Sequence[float],
+    mass: float,
+    friction: float,
+    dt: float,
+    gravity: float = 9.81,
+    integrator: str = "Euler",
+) -> MjModel:
+    """``count`` free boxes on a plane, every contact with sliding friction μ (condim 3) and
+    MuJoCo's default soft contact (solref 0.02 s, damping ratio 1: no bounce; default solimp),
+    MuJoCo's default Euler integrator and its default solver. Each body's qpos is
+    (x, y, z, w, qx, qy, qz) at ``7 i`` (:func:`place_boxes`)."""
+    hx = " ".join(f"{h:.17g}" for h in half_extents)
+    contact = f'condim="3" friction="{friction:.17g} 0.005 0.0001"'
+    boxes = "\n".join(
+        f'<body name="box{i}"><freejoint/><geom type="box" size="{hx}" mass="{mass:.17g}" '
+        f"{contact}/></body>"
+        for i in range(count)
+    )
+    xml = f"""<mujoco><option gravity="0 0 {-gravity:.17g}" timestep="{dt:.17g}"
+        integrator="{integrator}"/>
+      <worldbody><geom type="plane" size="50 50 0.1" {contact}/>
+        {boxes}
+      </worldbody></mujoco>"""
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+def place_boxes(model: MjModel, positions: ArrayLike, orientations: ArrayLike) -> Any:
+    """A fresh ``MjData`` of :func:`boxes_model` at rest with rigid_env's ``positions`` (n, 3)
+    and orientations (n, 4) as (x, y, z, w)."""
+    data = mujoco.MjData(model)
+    q = np.asarray(orientations, float)
+    qpos = data.qpos.reshape(-1, 7)
+    qpos[:, :3] = positions
+    qpos[:, 3:] = q[:, [3, 0, 1, 2]]
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def box_positions(data: Any) -> np.ndarray:
+    """The boxes' centres (n, 3) in ``data`` of :func:`boxes_model`."""
+    return np.array(data.qpos.reshape(-1, 7)[:, :3])
+
+
+def step_boxes(model: MjModel, data: Any, nstep: int) -> float:
+    """Seconds to take ``nstep`` steps of ``data`` in one ``mj_step`` call (MuJoCo's loop, one
+    thread)."""
+    start = time.perf_counter()
+    mujoco.mj_step(model, data, nstep=nstep)
+    return time.perf_counter() - start
