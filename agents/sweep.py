@@ -64,6 +64,7 @@ from rigid_env.files import write_json as write_json_atomically
 
 from . import config, hyperparameters, ownership, run_folder
 from .plan import MAX_SEED, Plan, make_plan
+from .train_cli import StopOnSignal
 
 if TYPE_CHECKING:
     from ray.tune import ResultGrid
@@ -788,30 +789,25 @@ def check_new_sweep(sweep_dir: Path) -> None:
             )
 
 
-class StopTune:
+class StopTune(StopOnSignal):
     """While active, the first SIGINT (Ctrl-C) or SIGTERM asks Ray Tune to stop as its own
     Ctrl-C handling does (its SIGUSR1 handler: the trials are stopped and the experiment state
     saved, so the sweep resumes), and ``requested`` is set; before Tune runs, or at a second
     signal, ``KeyboardInterrupt`` is raised (exit status 130; the sweep resumes from the state
-    Tune saved last)."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    Tune saved last). The handlers are installed and restored as the training's."""
 
     def __init__(self) -> None:
-        self.requested = False
-        self._previous: dict[int, Any] = {}
+        super().__init__()
         self._environ: str | None = None
 
     def __enter__(self) -> StopTune:
         self._environ = os.environ.get("TUNE_DISABLE_SIGINT_HANDLER")
         os.environ["TUNE_DISABLE_SIGINT_HANDLER"] = "1"  # SIGINT is handled here, not by Tune
-        for sig in self.SIGNALS:
-            self._previous[sig] = signal.signal(sig, self._handle)
+        super().__enter__()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+        super().__exit__(*exc)
         if self._environ is None:
             os.environ.pop("TUNE_DISABLE_SIGINT_HANDLER", None)
         else:
