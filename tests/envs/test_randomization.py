@@ -80,18 +80,23 @@ def test_torque_limit_is_drawn_per_episode_in_its_range_and_seeded(env_id):
     assert not np.array_equal(env.reset(seed=1)[1]["torque_limit"], limit)
 
 
+def push_from_rest(env, seed):
+    """Reorient reset with ``seed``, put at rest, then action 1 about the principal body x axis
+    for one action: returns the reset's info and the body's Ω_x after it, which is
+    limit · period / I_x (a body-fixed torque about a principal axis of a body at rest:
+    ω × Iω = 0 throughout)."""
+    _, info = env.reset(seed=seed)
+    env.unwrapped.set_state(orientation=(0, 0, 0, 1), target=(0, 0, 0, 1))
+    obs, *_ = env.step(np.array([1.0, 0.0, 0.0], np.float32))
+    return info, part(env, obs, "angular_velocity")[0] * env.unwrapped.task.spin_scale
+
+
 def test_the_drawn_torque_limit_is_the_torque_applied():
-    # Reorient from rest, action 1 about the principal body x axis for one action: the body
-    # gains Ω_x = limit · period / I_x (a body-fixed torque about a principal axis of a body
-    # at rest: ω × Iω = 0 throughout).
     env = gym.make(REORIENT, torque_scale_range=(0.25, 4.0), spin_range=(0.0, 0.0))
     task = env.unwrapped.task
     seen = []
     for seed in range(4):
-        _, info = env.reset(seed=seed)
-        env.unwrapped.set_state(orientation=(0, 0, 0, 1), target=(0, 0, 0, 1))
-        obs, *_ = env.step(np.array([1.0, 0.0, 0.0], np.float32))
-        omega = part(env, obs, "angular_velocity")[0] * task.spin_scale
+        info, omega = push_from_rest(env, seed)
         expected = info["torque_limit"][0] * task.config.action_period / task.inertia[0, 0]
         assert omega == pytest.approx(expected, rel=1e-6)  # float32 observation
         seen.append(info["torque_limit"][0])
@@ -255,17 +260,13 @@ def test_with_physical_randomisation_sub_env_i_equals_a_single_env_seeded_s_plus
 
 
 def test_the_drawn_mass_and_inertia_are_the_physics():
-    # As the torque test: from rest, action 1 about the principal body x axis for one action
-    # gives Ω_x = limit · period / I_x, with I_x the episode's: the nominal times the mass scale
-    # (a denser body of the same shape) times the inertia scale.
+    # push_from_rest's Ω_x = limit · period / I_x with I_x the episode's: the nominal times the
+    # mass scale (a denser body of the same shape) times the inertia scale.
     env = gym.make(REORIENT, spin_range=(0.0, 0.0), **PHYSICAL[REORIENT])
     task = env.unwrapped.task
     seen = []
     for seed in range(4):
-        _, info = env.reset(seed=seed)
-        env.unwrapped.set_state(orientation=(0, 0, 0, 1), target=(0, 0, 0, 1))
-        obs, *_ = env.step(np.array([1.0, 0.0, 0.0], np.float32))
-        omega = part(env, obs, "angular_velocity")[0] * task.spin_scale
+        info, omega = push_from_rest(env, seed)
         inertia = task.inertia[0, 0] * info["mass_scale"] * info["inertia_scale"]
         expected = task.max_torque[0] * task.config.action_period / inertia
         assert omega == pytest.approx(expected, rel=1e-6)  # float32 observation
