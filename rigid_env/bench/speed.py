@@ -334,6 +334,11 @@ kind = sys.argv[1]
 if kind == "landing":
     scene, initial = scenes.landing_scene(dt=0.01)
     state = initial(batch_shape=(1,))
+elif kind == "landing_spring":  # the landing scene's kind with other forces: a new composition
+    scene = sim.Scene(sim.Body.box(scenes.LANDING_HALF_EXTENTS, 1.0), 0.01,
+                      gravity=(0.0, 0.0, -9.81), ground=sim.Ground(restitution=0.3, friction=0.5),
+                      springs=[sim.Spring(0, (0.0, 0.0, 1.5), 20.0, 0.5)], angular_damping=0.1)
+    state = scene.initial_state(position=(0.0, 0.0, 1.0), batch_shape=(1,))
 else:
     scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 1.0), 0.01, integrator=kind)
     state = scene.initial_state(angular_velocity=(0.3, 3.0, 0.6), batch_shape=(1,))
@@ -343,13 +348,22 @@ done = time.perf_counter()
 print(json.dumps({"backend": scene.backend, "import_s": imported - start,
                   "scene_s": built - imported, "first_step_s": done - built}))
 """
-COMPILE_CASES = ("splitting", "landing")
+# (scene, caches): empty (cold), then those the cold run wrote (cached); last the landing
+# scene with a spring and damping added, with the landing's caches (a new composition).
+COMPILE_RUNS = (
+    ("splitting", "cold"),
+    ("splitting", "cached"),
+    ("landing", "cold"),
+    ("landing", "cached"),
+    ("landing_spring", "cached"),
+)
 
 
 def compile_times(progress: report.Progress | None = None) -> list[dict[str, Any]]:
     """Seconds to import rigid_env.sim, build a scene and take its first step in a fresh
     process, with empty numba and driver caches (``cold``: everything compiles) and again with
-    the caches the first run wrote (``cached``)."""
+    the caches the first run wrote (``cached``); last, the landing scene with a spring and
+    damping added, with the landing's caches (``COMPILE_RUNS``)."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         env = {
@@ -358,21 +372,20 @@ def compile_times(progress: report.Progress | None = None) -> list[dict[str, Any
             "RIGID_ENV_CACHE_DIR": os.path.join(tmp, "drivers"),
             "RIGID_ENV_BACKEND": "auto",
         }
-        for case in COMPILE_CASES:
-            for run in ("cold", "cached"):
-                if progress:
-                    progress(f"compile {case} {run}")
-                start = time.perf_counter()
-                out = subprocess.run(
-                    [sys.executable, "-c", _COMPILE_PROBE, case],
-                    env=env,
-                    capture_output=True,
-                    text=True,
-                    check=True,
-                )
-                row = json.loads(out.stdout.strip().splitlines()[-1])
-                row.update(case=case, run=run, process_s=time.perf_counter() - start)
-                rows.append(row)
+        for case, run in COMPILE_RUNS:
+            if progress:
+                progress(f"compile {case} {run}")
+            start = time.perf_counter()
+            out = subprocess.run(
+                [sys.executable, "-c", _COMPILE_PROBE, case],
+                env=env,
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            row = json.loads(out.stdout.strip().splitlines()[-1])
+            row.update(case=case, run=run, process_s=time.perf_counter() - start)
+            rows.append(row)
     return rows
 
 

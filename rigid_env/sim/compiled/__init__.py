@@ -103,7 +103,9 @@ report dict from the columns when read, at once when a solve was capped). ``step
 ``finite``, ``carry``, the integrator stage templates and the helpers a template module lists
 in ``INLINE`` are inlined into their caller: a call passes each array of ``st`` field by
 field, ~30-100 ns per call per element, and one that can raise keeps numba from pruning the
-reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). ``step`` runs ``nogil``
+reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). The contact
+kernels are calls, compiled once for every composition that uses them (``driver.py`` gives the
+measured trade). ``step`` runs ``nogil``
 (with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
 its parallel loop bodies accept no tuples of arrays). It

@@ -333,8 +333,8 @@ def scaled_velocity(st, e, mass, linv, u, z):
 # --- the stage -------------------------------------------------------------------------------
 
 
-# Inlined into the driver: it runs for every element (see ``driver``).
-@njit(cache=True, error_model="numpy", inline="always")
+# Called by the driver for every element of a contact step (``driver`` says why a call).
+@njit(cache=True, error_model="numpy")
 def assemble(e, st, d):
     """``AssembleContacts``: engaged or not; the rows of J̃ and t₁ per contact. Indexes the
     data and contact arrays in place (``offsets``): it runs for every element."""

@@ -238,8 +238,8 @@ def trapezoid_terms(floats, at, q, u0v, u0w, v, w):
     return cross_term, square
 
 
-# Inlined into the driver: it runs for every element (see ``driver``).
-@njit(cache=True, error_model="numpy", inline="always")
+# Called by the driver for every element of a contact step (``driver`` says why a call).
+@njit(cache=True, error_model="numpy")
 def limit_energy(e, st, d):
     """``LimitEnergy`` for one engaged element: scale its velocities so that the step keeps
     ``contacts.energy``'s invariant (1), E_end − W(u) ≤ max(E_start, E_free − W(u₁)); the
@@ -372,8 +372,8 @@ def limit_energy(e, st, d):
     report[e, ENERGY_REMOVED] = -0.5 * trapezoid
 
 
-# Inlined into the driver: it runs for every element (see ``driver``).
-@njit(cache=True, error_model="numpy", inline="always")
+# Called by the driver for every element of a contact step (``driver`` says why a call).
+@njit(cache=True, error_model="numpy")
 def separate_contacts(e, st, d):
     """``SeparateContacts`` for one engaged element: remove the overlap the step left and pay
     the lift's potential energy out of the kinetic energy (``energy.pay``: keeping E − W

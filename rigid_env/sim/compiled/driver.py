@@ -53,12 +53,15 @@ _JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
 # A function that takes the step tuple is inlined into its caller (numba IR): a call passes
 # every array of the tuple field by field (14 arrays of 11 words each), ~30-100 ns per call
 # per element, more than a free body's arithmetic (as ``integrators``' ``load``/``store``).
-# For the same reason the contact kernels every engaged element runs through whatever its
-# contacts do (``detect``, ``assemble``, ``limit_energy``, ``separate_contacts``) are declared
-# ``inline="always"``: BoxLanding's physics on trained-policy states, 4.6 → 4.3 µs per element
-# step, for a landing driver's compile 8 s → 20 s (each driver compiles its own copies).
-# ``solve`` and ``restitute`` stay calls: inlined as well they measured no faster, and the
-# compile grew to 36 s.
+# The contact kernels are calls, each compiled once and cached, so a new composition (other
+# forces, another integrator) links them instead of compiling its own copies: a landing scene
+# with a spring added, every kernel cached, first step 61 s → 21 s (whole step, 2 cores). Their
+# work per engaged element (microseconds) dwarfs a call; inlined, they measured 4.6 → 4.3 µs
+# per element step of BoxLanding's physics on an earlier, quieter machine, and no difference
+# resolvable on this one (interleaved landing batches of 1024, 7.4-11.5 µs against 8.1-11.3).
+# What remains of a new composition's compile is the inlined integrator and, mostly, LLVM
+# optimising and emitting the linked kernels again for the new module (numba links a callee's
+# IR into each caller): ~10 s of the 21 by profile.
 _JIT_INLINE = '@njit(cache=True, error_model="numpy", inline="always")'
 
 

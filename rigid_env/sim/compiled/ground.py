@@ -48,13 +48,13 @@ def _after(h, i, h0, i0):
     return h > h0 or (h == h0 and i > i0)
 
 
-# Inlined into the driver: it runs for every element (see ``driver``). It allocates nothing
-# and calls nothing that can raise: either would make numba's pruner keep a reference count
+# Called by the driver for every element of a contact step (``driver`` says why a call). It
+# allocates nothing and calls nothing that can raise: either would make numba's pruner keep a reference count
 # per array of the step and data tuples, ~36 atomic operations per element step. So the K
 # lowest are found in K passes, each the lowest after the previous one (no flags to store),
 # ordered by the height through R's third row (3 products a vertex); their arms and gaps are
 # then numpy's operations, as before.
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def detect(e, st, d):
     points, foot, bodies, keep = d
     k = keep[0]
