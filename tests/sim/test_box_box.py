@@ -338,3 +338,50 @@ def test_unsupported_pairs_name_the_pair():
     cuboid = sim.Body.polyhedron(corners, faces, 1.0)
     with pytest.raises(ValueError, match="Box–Polyhedron"):
         sim.Scene([sim.Body.box(HALF, 1.0), cuboid], 0.01, contacts=sim.Material())
+
+
+# Steps of the bench's resting scenes: 0.05 s. The 4-3-2-1 pyramid's dense active-set start
+# (780 rows) costs ~0.3 s a step on one core; the bug moved the boxes from the first step on
+# (~0.1 mm a step), so a short window catches it. The 2 s of the bench (480 steps):
+# `RIGID_ENV_PYRAMID_STEPS=480 python -m pytest tests/sim/test_box_box.py -k bench_stacks`.
+PYRAMID_STEPS = int(os.environ.get("RIGID_ENV_PYRAMID_STEPS", "12"))
+
+
+@pytest.mark.parametrize("name", ["tower_4", "pyramid_3", "pyramid_4"])
+def test_bench_stacks_and_pyramids_stay_at_rest(name):
+    """The many-body bench's resting scenes (``bench.many_bodies``: 1 kg cubes exactly at
+    rest, a pyramid's rows offset by half a box with 1 mm between the boxes of a row) move by
+    less than what the contact solve's stated tolerance lets through.
+
+    Bound: a converged solve leaves the contact velocities within ``tolerance`` × ``scale`` of
+    the answer (``solve.py``'s stopping test), and the answer of a scene exactly at rest is
+    v = 0; ``scale`` is the largest free contact velocity (g Δt) or target of a contact
+    (−d/Δt for a gap d), and no gap between two boxes or a box and the ground exceeds the
+    diagonal D of the box of the scene's corners and the ground: scale ≤ max(g Δt, D/Δt).
+    Each step moves a body by Δt times that in the position update, and the separation stage
+    removes at most the overlap this made (as much again): over N steps, at most
+    2 N Δt tolerance scale ≤ 2 N tolerance D (2–3e-11 m here; rounding, ε |x| ≈ 1e-16 m a step,
+    is far below). Before the fix a box–box slot with no contact point (``box_box.FAR``) set
+    the scale to 2.4e11 m/s, the particle start passed the probe sweep, and the pyramids moved
+    by ~0.1 mm a step (5 mm over the bench's 2 s); the tower, with no such slot, by 0.
+    """
+    from rigid_env.bench import many_bodies
+
+    scene = many_bodies.rigid_scene(many_bodies.body_count(name))
+    position, orientation = many_bodies.start(name, 1)
+    state = scene.initial_state(position=position[0], orientation=orientation[0])
+    start = state.copy()
+    corners = np.concatenate((position[0] - many_bodies.HALF, position[0] + many_bodies.HALF))
+    corners = np.concatenate((corners, [[0.0, 0.0, 0.0]]))  # the ground under the scene
+    diagonal = np.linalg.norm(np.ptp(corners, axis=0))
+    dt, tolerance = scene.dt, sim.SolverSettings().tolerance
+    scale = max(G * dt, diagonal / dt)
+    bound = 2 * PYRAMID_STEPS * dt * tolerance * scale
+    moved = 0.0
+    for _ in range(PYRAMID_STEPS):
+        state = scene.step(state)
+        assert scene.report["contacts"].converged
+        moved = max(moved, float(np.max(np.linalg.norm(state.position - start.position, axis=-1))))
+    assert moved <= bound, (
+        f"{name} moved {moved:.3g} m in {PYRAMID_STEPS} steps (bound {bound:.3g})"
+    )

@@ -35,7 +35,8 @@ NEAR_PARALLEL = 1e-6  # |e_a × e_b| below this: the edge pair defines no axis
 EDGE_FUDGE = 1.05  # relative preference for face axes (ODE / Bullet)
 FACE_MARGIN = 1e-3  # absolute preference, as a fraction of the smallest half-extent
 # Gap of a slot with no contact point (separated boxes whose faces do not overlap): far out of
-# reach of any step, yet finite so the solver's arithmetic on it stays finite.
+# reach of any step, yet finite so the solver's arithmetic on it stays finite. Its target is
+# no velocity of the problem: the solve's scales leave it out (``solve.contact_scales``).
 FAR = 1e9
 
 

@@ -28,10 +28,11 @@ element step; in the speed bench's landing batch (Δt = 0.01 s, 1024 boxes, 50 s
 capped solves from 170 to 56.
 
 Stopping: a batch element has converged when a whole sweep changes no contact velocity (A Δλ
-over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact velocity or target of that
-element). Converged elements drop out; an element that reaches ``max_iterations`` is reported
-(``Report``) and its impulse, if it would add kinetic energy, is cut back along its own
-direction (``dissipative``).
+over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact
+velocity or target of that element; a box–box slot with no contact point has a sentinel target
+and counts in no scale, ``contact_scales``). Converged elements drop out; an element that
+reaches ``max_iterations`` is reported (``Report``) and its impulse, if it would add kinetic
+energy, is cut back along its own direction (``dissipative``).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import scaled_velocity
+from .assembly import FAR_GAP, scaled_velocity
 from .newton import newton
 from .warm_start import active_set_start, particle_start
 
@@ -133,7 +134,7 @@ class SolverSettings:
             raise ValueError(f"start must be one of {STARTS}, got {self.start!r}")
 
 
-def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=None):
+def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=None, scale=None):
     """Solve the contact problem of the module docstring for every element of a batch.
 
     ``delassus`` (N, rC, rC) with r = 3 rows per contact (normal, t₁, t₂) or r = 1 (normal
@@ -141,7 +142,8 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=
     (N, C) the normal targets (−∞ where a contact is out of play), ``mu`` (C,), ``lam`` (N, C, r)
     the start, ``extra`` (N, C) normal impulse already carried (friction budget) or None.
     Returns ``(lam, sweeps, converged)``: sweeps (N,) used, converged (N,) bool; ``changes``
-    (N,), when given, receives each element's last sweep change (max |A Δλ|).
+    (N,), when given, receives each element's last sweep change (max |A Δλ|); ``scale`` (N,)
+    the stopping test's velocity scale (default ``velocity_scale(free, target)``).
     """
     size, c, r = free.shape
     lam = np.array(lam, dtype=float)
@@ -149,10 +151,7 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=
     converged = np.zeros(size, bool)
     if size == 0:
         return lam, sweeps, converged
-    finite = np.isfinite(target)
-    scale = np.max(np.abs(free.reshape(size, -1)), axis=-1)
-    scale = np.maximum(scale, np.max(np.where(finite, np.abs(target), 0.0), axis=-1))
-    scale = np.maximum(scale, 1e-300)
+    scale = velocity_scale(free, target) if scale is None else scale
     diag = np.diagonal(delassus, axis1=-2, axis2=-1).reshape(size, c, r)
     inv_n = 1.0 / diag[..., 0]
     if r == 3:
@@ -206,6 +205,42 @@ def gauss_seidel(delassus, free, target, mu, lam, settings, extra=None, changes=
     return lam, sweeps, converged
 
 
+def velocity_scale(free, target):
+    """The velocity scale (N,) of the stopping tests: the element's largest free contact
+    velocity (``free`` (N, C, r)) or finite target (``target`` (N, C))."""
+    size = len(free)
+    finite = np.isfinite(target)
+    scale = np.max(np.abs(free.reshape(size, -1)), axis=-1)
+    scale = np.maximum(scale, np.max(np.where(finite, np.abs(target), 0.0), axis=-1))
+    return np.maximum(scale, 1e-300)
+
+
+def contact_scales(free, target, short, gap):
+    """The stopping tests' velocity scale (N,) and the active-set start's shortfall scale (N,)
+    (``warm_start.PUSH_TOLERANCE``), over the slots that hold a contact point.
+
+    A box–box slot with no contact point (separated boxes whose faces do not overlap) has the
+    sentinel gap ``box_box.FAR`` = 1e9 m, which keeps it out of every step's reach with finite
+    arithmetic; its target −FAR/Δt (−2.4e11 m/s at Δt = 1/240 s) is no velocity of the
+    problem. Counted in the scale, it made the stopping test accept any sweep that changed the
+    contact velocities by less than 1e-12 × 2.4e11 = 0.24 m/s, six times a resting stack's free
+    velocity g Δt = 0.041 m/s: a pyramid's particle start (each box stopped as a particle on the
+    ground, nothing between the boxes) passed its probe sweep, so the boxes sank ~0.1 mm a step
+    into each other and into the ground, and the separation stage lifted them back a little
+    askew each time (~5 mm in 2 s), paying the lift out of the kinetic energy (v = 0 after
+    every step). A tower or a 2-1 pyramid has no such slot (every pair's faces overlap in
+    projection) and stayed at rest; a 3-2 pyramid has two (the outer bottom box and the far
+    box above it) and moved too. Such a slot's target stays in the problem (it keeps the
+    slot's impulse at 0); only the scales leave it out (``assembly.FAR_GAP``, as
+    ``pair_apart`` tells those slots). Scenes without such slots are unchanged, among them
+    every scene of the compiled kernels (ground contacts only), whose ``velocity_scale`` is
+    this rule."""
+    contact = gap < FAR_GAP
+    scale = velocity_scale(free, np.where(contact, target, -np.inf))
+    shortfall = np.max(np.abs(np.where(contact, short, 0.0)), axis=-1)
+    return scale, shortfall
+
+
 DISK_NEWTON_STEPS = 8  # the secular equation's Newton iteration converges quadratically from γ = 0
 
 
@@ -255,7 +290,7 @@ def _disk_step(att, eig, q, lt, vt, cap):
     return np.einsum("nij,nj->ni", q, l_local)
 
 
-def converge(delassus, free, target, mu, lam, settings, extra):
+def converge(delassus, free, target, mu, lam, settings, extra, scale=None):
     """Gauss–Seidel in rounds of ``newton_after`` sweeps, each unconverged element polished by
     Newton steps between rounds (``newton_steps`` in all per element), until it converges or
     has used ``max_iterations`` sweeps (arguments as :func:`gauss_seidel`, r = 3). A Newton
@@ -267,8 +302,11 @@ def converge(delassus, free, target, mu, lam, settings, extra):
     more than the last sweep before it did, Newton has made things worse (it reduces |F|², not
     Gauss–Seidel's change, and can carry λ far along the null space of a face's redundant
     corners, where Gauss–Seidel then crawls), so λ goes back to where the sweeps had it and the
-    element is not polished again. Returns ``(lam, sweeps, converged, newton_steps)``."""
+    element is not polished again. ``scale`` (N,): the stopping tests' velocity scale
+    (default ``velocity_scale(free, target)``). Returns ``(lam, sweeps, converged,
+    newton_steps)``."""
     size = len(free)
+    scale = velocity_scale(free, target) if scale is None else scale
     lam = np.array(lam, dtype=float)
     sweeps = np.zeros(size, int)
     steps = np.zeros(size, int)
@@ -290,6 +328,7 @@ def converge(delassus, free, target, mu, lam, settings, extra):
             SolverSettings(count, settings.tolerance),
             extra[idx],
             out,
+            scale[idx],
         )
         changes[idx] = out
         sweeps[idx] += more
@@ -313,6 +352,7 @@ def converge(delassus, free, target, mu, lam, settings, extra):
                 extra[go],
                 settings.newton_steps - steps[go],
                 settings.tolerance,
+                scale[go],
             )
             steps[go] += taken
             idx = sweep(1)  # judges the polish (for the others, one more sweep)
@@ -338,6 +378,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
         gap, remaining = rows.gap, np.full(len(u), dt)
     target = np.where(gap > 0, -gap / remaining[:, None], 0.0)
     short = target - free[..., 0]
+    scale, shortfall = contact_scales(free, target, short, gap)
     # First the cheap particle start (exact for a box resting or landing flat): one sweep
     # tells whether it already is the solution.
     lam = np.zeros(free.shape)
@@ -346,7 +387,7 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
         lam[warm[1]] = warm[0][warm[1]]
     probe = SolverSettings(1, settings.tolerance, settings.max_impacts, settings.start)
     lam, sweeps, converged = gauss_seidel(
-        rows.delassus, free, target, layout.mu, lam, probe, extra=impulse
+        rows.delassus, free, target, layout.mu, lam, probe, extra=impulse, scale=scale
     )
     steps = np.zeros(len(u), int)
     if not converged.all():
@@ -362,10 +403,23 @@ def solve_inelastic(layout, rows, u, impulse, dt, settings, gap=None, remaining=
             reach = dt * np.max(np.maximum(short[rest], 0.0), axis=-1, keepdims=True)
             reachable = (short[rest] > 0) | (gap[rest] <= reach)
             start = active_set_start(
-                layout, short[rest], sub.delassus, free[rest, :, 1:], reachable, impulse[rest]
+                layout,
+                short[rest],
+                sub.delassus,
+                free[rest, :, 1:],
+                reachable,
+                impulse[rest],
+                shortfall[rest],
             )
         lam[rest], more, converged[rest], steps[rest] = converge(
-            rows.delassus[rest], free[rest], target[rest], layout.mu, start, settings, impulse[rest]
+            rows.delassus[rest],
+            free[rest],
+            target[rest],
+            layout.mu,
+            start,
+            settings,
+            impulse[rest],
+            scale[rest],
         )
         sweeps[rest] += more
     if not converged.all():
@@ -395,4 +449,12 @@ def dissipative(lam, dz, z):
     return lam * s.reshape(shape), dz * s[:, None]
 
 
-__all__ = ["SolverSettings", "converge", "dissipative", "gauss_seidel", "solve_inelastic"]
+__all__ = [
+    "SolverSettings",
+    "contact_scales",
+    "converge",
+    "dissipative",
+    "gauss_seidel",
+    "solve_inelastic",
+    "velocity_scale",
+]

@@ -46,11 +46,13 @@ def particle_start(layout, short, lam_n):
     lam_n[..., : layout.n_ground] = share.reshape(len(short), -1)
 
 
-def active_set_start(layout, short, delassus, slip, reachable, extra):
+def active_set_start(layout, short, delassus, slip, reachable, extra, scale=None):
     """Start (N, C, 3); ``short`` (N, C) = target − v_n, ``slip`` (N, C, 2) the free
     tangential velocities, ``reachable`` (N, C) the initial set, ``extra`` (N, C) the normal
     impulse of this step's impacts (friction budget: a contact that has one takes part in the
-    tangential equations even when its normal row is off).
+    tangential equations even when its normal row is off); ``scale`` (N,) the largest |short|
+    that ``PUSH_TOLERANCE`` is a share of (default: over all slots; the solve leaves out the
+    slots with no contact point, ``solve.contact_scales``).
 
     A contact whose sticking impulse leaves its friction cone is moved to the cone's boundary
     in that impulse's direction d (λ_t = μ λ_n d: its normal column gains μ d of its tangent
@@ -68,7 +70,9 @@ def active_set_start(layout, short, delassus, slip, reachable, extra):
     settled = np.zeros(size, bool)
     lam = np.zeros((size, c, 3))
     budget = extra > 0
-    scale = np.max(np.abs(short), axis=-1, keepdims=True)
+    if scale is None:
+        scale = np.max(np.abs(short), axis=-1)
+    scale = np.asarray(scale)[:, None]
     for _ in range(ROUNDS):
         rows3 = on[..., None] & row_used
         rows3[..., 1:] = (on | budget)[..., None] & row_used[:, 1:] & ~bound[..., None]
