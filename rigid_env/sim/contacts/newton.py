@@ -197,12 +197,12 @@ def jump(delassus, free, target, mu, extra, lam, normal, phi, z_n, z_t, rho):
     return moved, jumped
 
 
-def newton(delassus, free, target, mu, lam, extra, budget, tolerance, scale=None):
+def newton(delassus, free, target, mu, lam, extra, budget, tolerance, scale):
     """Newton steps from ``lam`` (N, C, 3) on each element until its residual is below
     ``MARGIN`` × ``tolerance`` × its velocity scale, its line search stalls, or it has taken
     ``budget`` (N,) steps. Returns (lam, steps (N,)). ``delassus`` (N, 3C, 3C), ``free``
-    (N, C, 3), ``target`` and ``extra`` (N, C), ``mu`` (C,); ``scale`` (N,) the velocity
-    scale (default: the largest |free| or finite |target|, ``solve.velocity_scale``)."""
+    (N, C, 3), ``target`` and ``extra`` (N, C), ``mu`` (C,); ``scale`` (N,) the stopping
+    tests' velocity scale (``solve.contact_scales``)."""
     size, c, _ = free.shape
     lam = np.array(lam, dtype=float)
     steps = np.zeros(size, int)
@@ -210,11 +210,6 @@ def newton(delassus, free, target, mu, lam, extra, budget, tolerance, scale=None
     budget = np.broadcast_to(budget, (size,))
     if size == 0 or np.max(budget) <= 0:
         return lam, steps
-    if scale is None:
-        finite = np.isfinite(target)
-        scale = np.max(np.abs(free.reshape(size, -1)), axis=-1)
-        scale = np.maximum(scale, np.max(np.where(finite, np.abs(target), 0.0), axis=-1))
-        scale = np.maximum(scale, 1e-300)
     a_nn = np.diagonal(delassus, axis1=-2, axis2=-1)[:, 0::3]
     goal = MARGIN * tolerance * scale
     idx = np.arange(size)
