@@ -44,7 +44,7 @@ import numpy as np
 from rigid_env import sim
 from rigid_env.sim.scenes import landing_scene
 
-from . import contact_cases, peers, report, scenes
+from . import contact_cases, landing_episode, peers, report, scenes
 
 
 class Preset(TypedDict):
@@ -57,6 +57,8 @@ class Preset(TypedDict):
     env_batches: tuple[int, ...]
     env_steps: int
     compile_probe: bool
+    episode_batch: int  # the whole-episode landing workload (``landing_episode``)
+    episode_actions: int
 
 
 PRESETS: dict[str, Preset] = {
@@ -67,6 +69,8 @@ PRESETS: dict[str, Preset] = {
         env_batches=(1, 64, 1024, 4096),
         env_steps=200,
         compile_probe=True,
+        episode_batch=1024,
+        episode_actions=landing_episode.MAX_EPISODE_STEPS,
     ),
     "quick": dict(
         batches=(1, 64, 1024),  # 16384 in the full run (the landing pre-roll alone takes ~1 min)
@@ -75,6 +79,8 @@ PRESETS: dict[str, Preset] = {
         env_batches=(1, 64, 1024, 4096),
         env_steps=30,
         compile_probe=True,
+        episode_batch=1024,
+        episode_actions=landing_episode.MAX_EPISODE_STEPS,
     ),
     # tiny (the tests) skips the compile-time probe: it compiles from empty caches in fresh
     # processes, seconds per scene.
@@ -85,6 +91,8 @@ PRESETS: dict[str, Preset] = {
         env_batches=(1, 64),
         env_steps=5,
         compile_probe=False,
+        episode_batch=4,
+        episode_actions=2,
     ),
 }
 DT = 0.01
@@ -317,9 +325,18 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
         "memory": memory,
         "compile": compile_times(progress) if cfg["compile_probe"] else [],
         "environments": env_speed(cfg, progress),
+        "landing_episode": _landing_episode(cfg, progress),
         "unavailable": [f"{m} (a stage has no kernel)" for m in missing],
         "peers": peers.status(),
     }
+
+
+def _landing_episode(cfg: Preset, progress: report.Progress | None) -> dict[str, Any]:
+    if progress:
+        progress(f"speed landing_episode batch={cfg['episode_batch']}")
+    return landing_episode.measure(
+        cfg["episode_batch"], cfg["episode_actions"], repeats=min(cfg["repeats"], 3)
+    )
 
 
 # --- compile cost ------------------------------------------------------------------------------
@@ -502,6 +519,8 @@ def table(result: dict[str, Any]) -> str:
             ),
         ]
     out += ["", *targets(result)]
+    if result.get("landing_episode"):
+        out += ["", landing_episode.table(result["landing_episode"])]
     if result.get("compile"):
         out += [
             "",
@@ -585,12 +604,22 @@ TARGETS = (
     ("landing, batch 1", "landing", sim.CONTACT_INTEGRATOR, "Euler", 1, "≤ 10 µs/step"),
     ("landing, batch 1024", "landing", sim.CONTACT_INTEGRATOR, "Euler", 1024, "≥ 5× MuJoCo"),
     ("free body rk4 (equal order), batch 1024", "free_body", "rk4", "RK4", 1024, "≥ 10× MuJoCo"),
+    # whole episodes at BoxLanding's Δt: flight, impacts and rest in their proportions
+    (
+        "landing, whole episodes, batch 1024",
+        landing_episode.SCENE,
+        sim.CONTACT_INTEGRATOR,
+        landing_episode.MUJOCO_INTEGRATOR,
+        1024,
+        "≥ 1.5× MuJoCo",
+    ),
 )
 
 
 def targets(result: dict[str, Any]) -> list[str]:
     """The issue's speed targets against this run's figures, both backends and MuJoCo."""
-    recs, rows = result["records"], []
+    recs = [*result["records"], *result.get("landing_episode", {}).get("records", [])]
+    rows = []
     for what, scene, integrator, mj, batch, goal in TARGETS:
         row: dict[str, Any] = {"what": what, "goal": goal}
         for b in BACKENDS:
