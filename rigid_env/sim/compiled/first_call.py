@@ -25,6 +25,10 @@ A compile of more than a second or so is announced before it starts, on the logg
 logging is not configured; ``logging.getLogger("rigid_env.compile").setLevel(logging.ERROR)``
 silences it), with how long the last compile of that kind took here (``compile_times.json`` in
 the cache directory) or, the first time, the figure measured by the bench.
+
+With ``NUMBA_DISABLE_JIT=1`` numba's decorators return the functions themselves, so the same
+kernel source and the same generated driver run as plain Python (breakpoints and prints work
+inside a kernel; ~1000× slower): no compile, no lock, no notice.
 """
 
 from __future__ import annotations
@@ -84,7 +88,13 @@ def compile_lock(path: Path, what: str):
 def first_call(dispatcher, call, directory: Path, name: str, kind: str, what: str):
     """``call()`` (the first call of the driver module ``name``'s dispatcher) under the
     driver's lock, announced if it is going to compile; the compile's duration is recorded
-    for the next announcement of ``kind`` ("contacts" or "free")."""
+    for the next announcement of ``kind`` ("contacts" or "free"). With numba's JIT disabled
+    (``NUMBA_DISABLE_JIT=1``, the debugging mode) the kernels run as plain Python: nothing
+    compiles, so there is nothing to lock, announce or record."""
+    from numba.core import config
+
+    if config.DISABLE_JIT:
+        return call()
     with compile_lock(directory / f"{name}.lock", what):
         if is_cached(dispatcher):
             return call()
