@@ -329,3 +329,52 @@ def test_splitting_takes_its_damped_template_only_with_velocity_dependent_forces
 
     assert kernels(gravity=(0.0, 0.0, -9.81)) == [integrator]
     assert kernels(linear_damping=0.3, angular_damping=0.5) == [integrator + "_damped"]
+
+
+@pytest.mark.parametrize("fields", ["CONTACT_COLUMNS", "REPORT_COLUMNS"])
+def test_each_packed_column_is_where_its_declaration_puts_it(fields):
+    """The names bound in ``layout`` are the declared fields, in order, at the derived starts:
+    a field inserted or swapped in one place and not the other fails here."""
+    declared = getattr(layout, fields)
+    starts = layout.columns(declared)
+    assert [getattr(layout, name) for name, _ in declared] == list(starts[:-1])
+    width = "CONTACT_WIDTH" if fields == "CONTACT_COLUMNS" else "REPORT_WIDTH"
+    assert getattr(layout, width) == starts[-1] == sum(w for _, w in declared)
+    assert starts[-1] == (42 if fields == "CONTACT_COLUMNS" else 12)
+
+
+def test_contact_data_blocks_start_where_the_kernels_read_them():
+    """Each block of the contact kernels' data sits where ``offsets`` (the kernels' reader)
+    says, holding what the scene gave it."""
+    from rigid_env.sim.compiled import contact_assembly as ca
+    from rigid_env.sim.contacts.stages import AssembleContacts
+
+    scene = sim.Scene(
+        [sim.Body.box((0.1, 0.15, 0.2), 1.0), sim.Body.sphere(0.1, 2.0)],
+        0.01,
+        gravity=(0.0, 0.0, -9.81),
+        ground=sim.Ground(restitution=0.3, friction=0.5),
+        springs=[spring()],
+        backend="compiled",
+    )
+    ints, floats = ca.contact_data(scene)
+    o = ca.offsets.py_func(ints)
+    lay = next(s for s in scene.pipeline if isinstance(s, AssembleContacts)).layout
+    c, n, g = len(lay.a), scene.n_bodies, ints[ca.I_GROUND]
+    np.testing.assert_array_equal(ints[o[ca.O_OWNER] : o[ca.O_OWNER] + c], lay.a)
+    np.testing.assert_array_equal(ints[o[ca.O_SHAPED] : o[ca.O_SHAPED] + g], [0, 1])
+    expected = {
+        ca.O_MU: lay.mu,
+        ca.O_EPS: lay.eps,
+        ca.O_THRESHOLD: lay.threshold,
+        ca.O_MASS: scene.model.mass,
+        ca.O_RIM: lay.root_inv_mass,
+        ca.O_L: lay.root_inv_inertia.reshape(-1),
+        ca.O_LINV: lay.root_inertia.reshape(-1),
+    }
+    for block, values in expected.items():
+        np.testing.assert_array_equal(floats[o[block] : o[block] + len(values)], values)
+    assert o[ca.O_L] - o[ca.O_RIM] == n and o[ca.O_LINV] - o[ca.O_L] == 9 * n
+    assert floats[ca.F_DT] == 0.01
+    np.testing.assert_array_equal(floats[ca.F_GRAVITY : ca.F_GRAVITY + 3], (0.0, 0.0, -9.81))
+    assert len(floats) - o[ca.O_SPRINGS] == ca.spring_table(scene.model).size

@@ -25,7 +25,17 @@ from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
 
 # Index of the integer parameters (``I``) and float parameters (``F``) in the data tuple.
 I_GROUND, I_K, I_MAX_ITERATIONS, I_MAX_IMPACTS, I_PARTICLE, I_GRAVITY, I_C, I_N, I_V = range(9)
-F_DT, F_TOLERANCE = range(2)
+I_OFFSETS = 9  # then the start of each block (``O_*``), written by ``contact_data``
+F_DT, F_TOLERANCE, F_GRAVITY = 0, 1, 2  # gravity: 3 entries
+F_HEAD = 5
+# The blocks after the heads, in this order: owner and shaped in ints, the rest in floats.
+# ``contact_data`` names each block by its constant and writes where it starts; kernels read
+# the starts (``offsets``), so no size arithmetic is written twice.
+O_OWNER, O_SHAPED = 0, 1  # in ints
+O_MU, O_EPS, O_THRESHOLD, O_MASS, O_RIM, O_L, O_LINV, O_BODY, O_POINTS, O_FOOT = range(2, 12)
+O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
+N_BLOCKS = 13
+INT_BLOCKS = (O_OWNER, O_SHAPED)
 # The spring count, the warm start's flag and the Newton polish's settings sit at the end of the
 # integer array (after the index tables).
 I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -4, -3, -2, -1
@@ -64,25 +74,31 @@ def contact_data(scene) -> tuple | None:
     ]
     springs = spring_table(model)  # the loads of the energy guard's W (``contacts.energy``)
     tail = [len(springs), int(settings.warm_start), settings.newton_after, settings.newton_steps]
-    ints = np.concatenate((head, lay.a, shaped, tail)).astype(np.int64)
     body = bodies.body_data(model)
-    floats = np.concatenate(
-        [
-            [scene.dt, settings.tolerance],
-            gravity,
-            lay.mu,
-            lay.eps,
-            lay.threshold,
-            model.mass,
-            lay.root_inv_mass,
-            lay.root_inv_inertia.reshape(-1),  # L
-            lay.root_inertia.reshape(-1),  # L⁻¹
-            body.reshape(-1),
-            points.reshape(-1),
-            foot,
-            springs.reshape(-1),
-        ]
-    ).astype(float)
+    blocks = {
+        O_OWNER: lay.a,
+        O_SHAPED: shaped,
+        O_MU: lay.mu,
+        O_EPS: lay.eps,
+        O_THRESHOLD: lay.threshold,
+        O_MASS: model.mass,
+        O_RIM: lay.root_inv_mass,
+        O_L: lay.root_inv_inertia.reshape(-1),
+        O_LINV: lay.root_inertia.reshape(-1),  # L⁻¹
+        O_BODY: body.reshape(-1),
+        O_POINTS: points.reshape(-1),
+        O_FOOT: foot,
+        O_SPRINGS: springs.reshape(-1),
+    }
+    starts = np.zeros(N_BLOCKS, dtype=np.int64)
+    int_parts = [np.asarray(head, np.int64), starts]
+    float_parts = [np.array([scene.dt, settings.tolerance]), gravity]
+    for o in range(N_BLOCKS):
+        parts = int_parts if o in INT_BLOCKS else float_parts
+        starts[o] = sum(len(part) for part in parts)
+        parts.append(np.asarray(blocks[o]))
+    ints = np.concatenate([*int_parts, tail]).astype(np.int64)
+    floats = np.concatenate(float_parts).astype(float)
     # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
     return (ints, floats)
 
@@ -107,35 +123,27 @@ def block3(flat, start, a, b, c):
     return np.lib.stride_tricks.as_strided(part, (a, b, c), (b * c * size, c * size, size))
 
 
-# Where each block of ``contact_data``'s arrays starts (``offsets``' tuple).
-O_OWNER, O_SHAPED = 0, 1  # in ints
-O_MU, O_EPS, O_THRESHOLD, O_MASS, O_RIM, O_L, O_LINV, O_BODY, O_POINTS, O_FOOT = range(2, 12)
-O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def offsets(ints):
     """Start of each block of ``contact_data``'s arrays (``O_*``): owner and shaped in ints,
     the rest in floats. Kernels on the common path index the two arrays in place with these:
-    each view ``unpack`` makes costs ~8 ns per element (its reference count)."""
-    g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
-    o_l = 5 + 3 * c + 2 * n
-    o_body = o_l + 18 * n
-    o_points = o_body + bodies.BODY_WIDTH * n
+    each view ``unpack`` makes costs ~8 ns per element (its reference count). A tuple of
+    scalars, not a view of ``ints``, for the same reason."""
+    s = I_OFFSETS
     return (
-        9,
-        9 + c,
-        5,
-        5 + c,
-        5 + 2 * c,
-        5 + 3 * c,
-        5 + 3 * c + n,
-        o_l,
-        o_l + 9 * n,
-        o_body,
-        o_points,
-        o_points + 3 * g * v,
-        o_points + 3 * g * v + g,
+        ints[s],
+        ints[s + 1],
+        ints[s + 2],
+        ints[s + 3],
+        ints[s + 4],
+        ints[s + 5],
+        ints[s + 6],
+        ints[s + 7],
+        ints[s + 8],
+        ints[s + 9],
+        ints[s + 10],
+        ints[s + 11],
+        ints[s + 12],
     )
 
 
@@ -179,7 +187,7 @@ def unpack(d):
         block(floats, o[O_BODY], n, bodies.BODY_WIDTH),
         block3(floats, o[O_POINTS], g, v, 3),
         floats[o[O_FOOT] : o[O_FOOT] + g],
-        floats[2:5],
+        floats[F_GRAVITY : F_GRAVITY + 3],
     )
 
 

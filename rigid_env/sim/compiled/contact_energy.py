@@ -17,6 +17,7 @@ from .bodies import BODY_WIDTH, DIAGONAL, INERTIA, inertia_times
 from .cache import njit
 from .contact_assembly import (
     F_DT,
+    F_GRAVITY,
     I_GRAVITY,
     I_GROUND,
     I_K,
@@ -82,9 +83,10 @@ def kinetic_term(floats, at, q, v, w):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def potential_term(floats, o, b, x):
-    """Body b's m (x · g) of ``energy.potential`` (−Σ of these), gravity ``floats[2:5]``."""
+    """Body b's m (x · g) of ``energy.potential`` (−Σ of these), gravity ``floats[F_GRAVITY:]``."""
     m = floats[o[O_MASS] + b]
-    return m * (x[0] * floats[2] + x[1] * floats[3] + x[2] * floats[4])
+    g = F_GRAVITY
+    return m * (x[0] * floats[g] + x[1] * floats[g + 1] + x[2] * floats[g + 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
