@@ -43,7 +43,9 @@ point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a fl
 columns from ``SOLVER`` on belong to the contact solve and restitution (``contact_*.py``: the
 rows of J̃, the tangent, the gap after the impacts, their impulse, a body's velocities after the
 velocity update and its orientation along the impacts' path; see ``layout.py``). Scenes whose contacts are all ground contacts run their
-contact stages compiled; a scene with body–body contacts has no kernel for them (numpy). Ground
+contact stages compiled; a scene with body–body contacts steps with numpy, whose pair detection
+calls ``pairs.py``'s kernels (the one implementation of sphere–sphere, sphere–box and box–box
+detection); their assembly and solve have no kernel yet. Ground
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
 at the start-of-step pose as numpy does (its order is Gauss–Seidel's visiting order, so both

@@ -12,49 +12,60 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import quat_to_matrix, rotate, rotate_inverse
 from ..shapes import Box, Sphere
 from .box_box import SLOTS as BOX_BOX_SLOTS
 from .box_box import box_box
 
 
-def _unit(v):
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    fallback = np.zeros_like(v)
-    fallback[..., 2] = 1.0  # coincident centres: any direction is as good
-    return np.where(norm > 1e-12, v / np.where(norm > 1e-12, norm, 1.0), fallback), norm[..., 0]
-
-
 def sphere_sphere(ra, rb):
+    """Detection for pairs of spheres of radii ``ra``, ``rb`` (P,): the normal along the
+    centres (+z when they coincide), gap = distance − radii (``compiled.pairs``)."""
     ra, rb = np.asarray(ra, float), np.asarray(rb, float)
 
     def detect(xa, qa, xb, qb):
-        n, dist = _unit(xa - xb)
-        return -ra[:, None] * n, rb[:, None] * n, n, dist - ra - rb
+        from ..compiled import pairs as kernels
+
+        (xa, _, xb, _), shape = kernels.pair_rows(xa, qa, xb, qb)
+        arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
+        gap = np.empty(shape)
+        kernels.sphere_sphere(
+            xa,
+            xb,
+            ra,
+            rb,
+            arm_a.reshape(-1, 3),
+            arm_b.reshape(-1, 3),
+            normal.reshape(-1, 3),
+            gap.reshape(-1),
+        )
+        return arm_a, arm_b, normal, gap
 
     return detect
 
 
 def sphere_box(radius, half_extents):
-    """Sphere a against box b: closest point of the box to the sphere's centre (Ericson 5.1.3)."""
+    """Sphere a against box b: closest point of the box to the sphere's centre (Ericson 5.1.3);
+    a centre inside the box leaves through the face of least penetration (``compiled.pairs``)."""
     radius, half = np.asarray(radius, float), np.asarray(half_extents, float)
 
     def detect(xa, qa, xb, qb):
-        rot = quat_to_matrix(qb)
-        c = rotate_inverse(rot, xa - xb)  # sphere centre in box axes
-        closest = np.clip(c, -half, half)
-        diff, dist = _unit(c - closest)
-        # Centre inside the box: push out through the face of least penetration.
-        inside = dist <= 1e-12
-        depth = half - np.abs(c)
-        axis = np.argmin(depth, axis=-1)
-        face = np.eye(3)[axis] * np.where(c >= 0, 1.0, -1.0)
-        face_point = np.where(face != 0, face * half, c)
-        n_local = np.where(inside[..., None], face, diff)
-        closest = np.where(inside[..., None], face_point, closest)
-        gap = np.where(inside, -np.take_along_axis(depth, axis[..., None], -1)[..., 0], dist)
-        n = rotate(rot, n_local)
-        return -radius[:, None] * n, rotate(rot, closest), n, gap - radius
+        from ..compiled import pairs as kernels
+
+        (xa, _, xb, qb), shape = kernels.pair_rows(xa, qa, xb, qb)
+        arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
+        gap = np.empty(shape)
+        kernels.sphere_box(
+            xa,
+            xb,
+            qb,
+            radius,
+            half,
+            arm_a.reshape(-1, 3),
+            arm_b.reshape(-1, 3),
+            normal.reshape(-1, 3),
+            gap.reshape(-1),
+        )
+        return arm_a, arm_b, normal, gap
 
     return detect
 
