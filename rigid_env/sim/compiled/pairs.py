@@ -142,6 +142,20 @@ def _clip(poly, count, coord, sign, bound, out, valid):
     return min(kept, size)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _axes_last(axes, half, last):
+    """A box's axes (rows) and half extents in the order (k+1, k+2, k), k = ``last``: a
+    right-handed permutation with that axis last."""
+    rows = np.empty((3, 3))
+    h = np.empty(3)
+    for k in range(3):
+        a = (last + 1 + k) % 3
+        h[k] = half[a]
+        for i in range(3):
+            rows[k, i] = axes[a, i]
+    return rows, h
+
+
 @njit(cache=True, error_model="numpy")
 def _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap):
     """The clipped face manifold (``contacts.box_box``): reference face of box b when
@@ -153,26 +167,14 @@ def _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap):
     s = 1.0 if ref_b else -1.0
     out = (s * n[0], s * n[1], s * n[2])  # the reference face's outward normal
     # Reference frame with the face axis last: (k+1, k+2, k), a right-handed permutation.
-    ref = np.empty((3, 3))
-    h_ref = np.empty(3)
-    for k in range(3):
-        a = (face + 1 + k) % 3
-        h_ref[k] = h_r[a]
-        for i in range(3):
-            ref[k, i] = axes_r[a, i]
+    ref, h_ref = _axes_last(axes_r, h_r, face)
     j, best = 0, -1.0
     dots = np.empty(3)
     for k in range(3):
         dots[k] = axes_i[k, 0] * out[0] + axes_i[k, 1] * out[1] + axes_i[k, 2] * out[2]
         if abs(dots[k]) > best:
             j, best = k, abs(dots[k])
-    u = np.empty((3, 3))
-    h_u = np.empty(3)
-    for k in range(3):
-        a = (j + 1 + k) % 3
-        h_u[k] = h_i[a]
-        for i in range(3):
-            u[k, i] = axes_i[a, i]
+    u, h_u = _axes_last(axes_i, h_i, j)
     s_j = -_sign(dots[j])
     poly = np.empty((MAX_POLYGON, 3))
     for c in range(4):

@@ -17,28 +17,29 @@ from .box_box import SLOTS as BOX_BOX_SLOTS
 from .box_box import box_box
 
 
+def _one_point(kernel, poses, params):
+    """Run a one-point kernel (``compiled.pairs``) on the pairs' poses ``(xa, qa, xb, qb)``
+    (…, P, 3|4): its pose arguments are ``xa, xb`` and, for a box b, ``qb``."""
+    from ..compiled import pairs as kernels
+
+    (xa, _, xb, qb), shape = kernels.pair_rows(*poses)
+    rows = (xa, xb) if kernel is kernels.sphere_sphere else (xa, xb, qb)
+    arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
+    gap = np.empty(shape)
+    flat = (arm_a.reshape(-1, 3), arm_b.reshape(-1, 3), normal.reshape(-1, 3), gap.reshape(-1))
+    kernel(*rows, *params, *flat)
+    return arm_a, arm_b, normal, gap
+
+
 def sphere_sphere(ra, rb):
     """Detection for pairs of spheres of radii ``ra``, ``rb`` (P,): the normal along the
     centres (+z when they coincide), gap = distance − radii (``compiled.pairs``)."""
-    ra, rb = np.asarray(ra, float), np.asarray(rb, float)
+    params = np.asarray(ra, float), np.asarray(rb, float)
 
     def detect(xa, qa, xb, qb):
         from ..compiled import pairs as kernels
 
-        (xa, _, xb, _), shape = kernels.pair_rows(xa, qa, xb, qb)
-        arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
-        gap = np.empty(shape)
-        kernels.sphere_sphere(
-            xa,
-            xb,
-            ra,
-            rb,
-            arm_a.reshape(-1, 3),
-            arm_b.reshape(-1, 3),
-            normal.reshape(-1, 3),
-            gap.reshape(-1),
-        )
-        return arm_a, arm_b, normal, gap
+        return _one_point(kernels.sphere_sphere, (xa, qa, xb, qb), params)
 
     return detect
 
@@ -46,26 +47,12 @@ def sphere_sphere(ra, rb):
 def sphere_box(radius, half_extents):
     """Sphere a against box b: closest point of the box to the sphere's centre (Ericson 5.1.3);
     a centre inside the box leaves through the face of least penetration (``compiled.pairs``)."""
-    radius, half = np.asarray(radius, float), np.asarray(half_extents, float)
+    params = np.asarray(radius, float), np.asarray(half_extents, float)
 
     def detect(xa, qa, xb, qb):
         from ..compiled import pairs as kernels
 
-        (xa, _, xb, qb), shape = kernels.pair_rows(xa, qa, xb, qb)
-        arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
-        gap = np.empty(shape)
-        kernels.sphere_box(
-            xa,
-            xb,
-            qb,
-            radius,
-            half,
-            arm_a.reshape(-1, 3),
-            arm_b.reshape(-1, 3),
-            normal.reshape(-1, 3),
-            gap.reshape(-1),
-        )
-        return arm_a, arm_b, normal, gap
+        return _one_point(kernels.sphere_box, (xa, qa, xb, qb), params)
 
     return detect
 
