@@ -20,23 +20,30 @@ import numpy as np
 
 from ..contacts.box_box import EDGE_FUDGE, FAR, MAX_POLYGON, NEAR_PARALLEL, SLOTS
 from .cache import njit
-from .rotation import quat_to_matrix
+from .rotation import add, cross, dot, norm3, quat_to_matrix, rotate, rotate_inverse, scale, sub
 
 TINY = 1e-12  # below this distance a direction is taken as undefined (``contacts.pairs``)
 SIGNS = ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0))  # a quad's corners, cyclic
 
 
-def pair_rows(xa, qa, xb, qb):
-    """The pairs' poses (…, P, 3|4) as C-ordered float64 rows (M, 3|4), M = every batch
-    element's P pairs in turn (so pair m's shape parameters are row m % P), and (…, P)."""
-    shape = np.broadcast_shapes(xa.shape[:-1], qa.shape[:-1], xb.shape[:-1], qb.shape[:-1])
+def run(kernel, poses, params, slots=None):
+    """``kernel`` on the pairs' poses ``(xa, qa, xb, qb)`` (…, P, 3|4) with its (P, ·) shape
+    tables ``params``: arms on a and on b, normal (…, P[, slots], 3) and gap (…, P[, slots]).
+    The poses go in as C-ordered float64 rows (M, 3|4), every batch element's P pairs in turn,
+    so pair m's shape parameters are row m % P."""
+    shape = np.broadcast_shapes(*(a.shape[:-1] for a in poses))
     rows = tuple(
         np.ascontiguousarray(
             np.broadcast_to(a, (*shape, a.shape[-1])).reshape(-1, a.shape[-1]), dtype=np.float64
         )
-        for a in (xa, qa, xb, qb)
+        for a in poses
     )
-    return rows, shape
+    per_pair = () if slots is None else (slots,)
+    arm_a, arm_b, normal = (np.empty((*shape, *per_pair, 3)) for _ in range(3))
+    gap = np.empty((*shape, *per_pair))
+    flat = tuple(a.reshape(-1, *per_pair, 3) for a in (arm_a, arm_b, normal))
+    kernel(*rows, *params, *flat, gap.reshape(-1, *per_pair))
+    return arm_a, arm_b, normal, gap
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -46,14 +53,15 @@ def _sign(v):
 
 
 @njit(cache=True, error_model="numpy")
-def sphere_sphere(xa, xb, ra, rb, arm_a, arm_b, normal, gap):
-    """Normal along the centres (+z when they coincide), from b to a; gap = distance − radii."""
+def sphere_sphere(xa, qa, xb, qb, ra, rb, arm_a, arm_b, normal, gap):
+    """Normal along the centres (+z when they coincide), from b to a; gap = distance − radii.
+    (The orientations are not read: the kernels share one signature, ``run``.)"""
     pairs = ra.shape[0]
     for m in range(xa.shape[0]):
         p = m % pairs
-        d0, d1, d2 = xa[m, 0] - xb[m, 0], xa[m, 1] - xb[m, 1], xa[m, 2] - xb[m, 2]
-        dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        n = (d0 / dist, d1 / dist, d2 / dist) if dist > TINY else (0.0, 0.0, 1.0)
+        d = (xa[m, 0] - xb[m, 0], xa[m, 1] - xb[m, 1], xa[m, 2] - xb[m, 2])
+        dist = norm3(d)
+        n = (d[0] / dist, d[1] / dist, d[2] / dist) if dist > TINY else (0.0, 0.0, 1.0)
         for i in range(3):
             arm_a[m, i] = -ra[p] * n[i]
             arm_b[m, i] = rb[p] * n[i]
@@ -62,52 +70,45 @@ def sphere_sphere(xa, xb, ra, rb, arm_a, arm_b, normal, gap):
 
 
 @njit(cache=True, error_model="numpy")
-def sphere_box(xa, xb, qb, radius, half, arm_a, arm_b, normal, gap):
+def sphere_box(xa, qa, xb, qb, radius, half, arm_a, arm_b, normal, gap):
     """Sphere a against box b: the box's closest point to the centre (Ericson 5.1.3); a centre
     inside the box leaves through the face of least penetration."""
     pairs = radius.shape[0]
     for m in range(xa.shape[0]):
         p = m % pairs
+        h = (half[p, 0], half[p, 1], half[p, 2])
         rot = quat_to_matrix((qb[m, 0], qb[m, 1], qb[m, 2], qb[m, 3]))
-        d = (xa[m, 0] - xb[m, 0], xa[m, 1] - xb[m, 1], xa[m, 2] - xb[m, 2])
-        c = np.empty(3)  # the centre in box axes
-        closest = np.empty(3)
-        for i in range(3):
-            c[i] = rot[i] * d[0] + rot[3 + i] * d[1] + rot[6 + i] * d[2]
-            closest[i] = min(max(c[i], -half[p, i]), half[p, i])
+        c = rotate_inverse(rot, (xa[m, 0] - xb[m, 0], xa[m, 1] - xb[m, 1], xa[m, 2] - xb[m, 2]))
+        closest = (
+            min(max(c[0], -h[0]), h[0]),
+            min(max(c[1], -h[1]), h[1]),
+            min(max(c[2], -h[2]), h[2]),
+        )
         e = (c[0] - closest[0], c[1] - closest[1], c[2] - closest[2])
-        dist = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
-        local = np.empty(3)
+        dist = norm3(e)
         if dist > TINY:
-            for i in range(3):
-                local[i] = e[i] / dist
+            local = (e[0] / dist, e[1] / dist, e[2] / dist)
             g = dist
         else:  # inside: push out through the face of least penetration
-            axis, depth = 0, half[p, 0] - abs(c[0])
+            axis = 0
             for i in range(1, 3):
-                if half[p, i] - abs(c[i]) < depth:
-                    axis, depth = i, half[p, i] - abs(c[i])
-            for i in range(3):
-                local[i] = 0.0
-            local[axis] = 1.0 if c[axis] >= 0 else -1.0
-            closest[axis] = local[axis] * half[p, axis]
-            for i in range(3):
-                if i != axis:
-                    closest[i] = c[i]
-            g = -depth
-        for i in range(3):
-            n_i = rot[3 * i] * local[0] + rot[3 * i + 1] * local[1] + rot[3 * i + 2] * local[2]
-            normal[m, i] = n_i
-            arm_a[m, i] = -radius[p] * n_i
-            arm_b[m, i] = (
-                rot[3 * i] * closest[0] + rot[3 * i + 1] * closest[1] + rot[3 * i + 2] * closest[2]
+                if h[i] - abs(c[i]) < h[axis] - abs(c[axis]):
+                    axis = i
+            side = 1.0 if c[axis] >= 0 else -1.0
+            local = (side * (axis == 0), side * (axis == 1), side * (axis == 2))
+            closest = (
+                side * h[0] if axis == 0 else c[0],
+                side * h[1] if axis == 1 else c[1],
+                side * h[2] if axis == 2 else c[2],
             )
+            g = -(h[axis] - abs(c[axis]))
+        n = rotate(rot, local)
+        point = rotate(rot, closest)
+        for i in range(3):
+            normal[m, i] = n[i]
+            arm_a[m, i] = -radius[p] * n[i]
+            arm_b[m, i] = point[i]
         gap[m] = g - radius[p]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _dot_rows(a, i, b, j):
-    return a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
 
 
 @njit(cache=True, error_model="numpy")
@@ -143,63 +144,52 @@ def _clip(poly, count, coord, sign, bound, out, valid):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _axes_last(axes, half, last):
-    """A box's axes (rows) and half extents in the order (k+1, k+2, k), k = ``last``: a
-    right-handed permutation with that axis last."""
-    rows = np.empty((3, 3))
-    h = np.empty(3)
+def _axes_last(axes, half, last, rows, h):
+    """Into ``rows``, ``h``: a box's axes (rows) and half extents in the order (k+1, k+2, k),
+    k = ``last``, a right-handed permutation with that axis last."""
     for k in range(3):
         a = (last + 1 + k) % 3
         h[k] = half[a]
         for i in range(3):
             rows[k, i] = axes[a, i]
-    return rows, h
 
 
 @njit(cache=True, error_model="numpy")
-def _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap):
+def _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap, work):
     """The clipped face manifold (``contacts.box_box``): reference face of box b when
     ``ref_b``, else of box a, ``face`` its axis; the incident face the other box's most
-    anti-parallel one. Writes the four slots of row m."""
+    anti-parallel one. Writes the four slots of row m; ``work``: ``box_box``'s scratch."""
+    ref, h_ref, u, h_u, poly, scratch, valid, heights = work
     x_r, x_i = (xb, xa) if ref_b else (xa, xb)
     axes_r, axes_i = (axes_b, axes_a) if ref_b else (axes_a, axes_b)
     h_r, h_i = (hb, ha) if ref_b else (ha, hb)
     s = 1.0 if ref_b else -1.0
     out = (s * n[0], s * n[1], s * n[2])  # the reference face's outward normal
     # Reference frame with the face axis last: (k+1, k+2, k), a right-handed permutation.
-    ref, h_ref = _axes_last(axes_r, h_r, face)
-    j, best = 0, -1.0
-    dots = np.empty(3)
+    _axes_last(axes_r, h_r, face, ref, h_ref)
+    j, best, d_j = 0, -1.0, 0.0
     for k in range(3):
-        dots[k] = axes_i[k, 0] * out[0] + axes_i[k, 1] * out[1] + axes_i[k, 2] * out[2]
-        if abs(dots[k]) > best:
-            j, best = k, abs(dots[k])
-    u, h_u = _axes_last(axes_i, h_i, j)
-    s_j = -_sign(dots[j])
-    poly = np.empty((MAX_POLYGON, 3))
+        d_k = dot(axes_i[k], out)
+        if abs(d_k) > best:
+            j, best, d_j = k, abs(d_k), d_k
+    _axes_last(axes_i, h_i, j, u, h_u)
+    s_j = -_sign(d_j)
+    x_ref = (x_r[m, 0], x_r[m, 1], x_r[m, 2])
+    centre = add((x_i[m, 0], x_i[m, 1], x_i[m, 2]), scale(s_j * h_u[2], u[2]))
     for c in range(4):
-        corner = np.empty(3)
-        for i in range(3):
-            centre = x_i[m, i] + s_j * h_u[2] * u[2, i]
-            corner[i] = (
-                centre
-                + (SIGNS[c][0] * h_u[0] * u[0, i] + SIGNS[c][1] * h_u[1] * u[1, i])
-                - x_r[m, i]
-            )
+        side = add(scale(SIGNS[c][0] * h_u[0], u[0]), scale(SIGNS[c][1] * h_u[1], u[1]))
+        corner = sub(add(centre, side), x_ref)
         for k in range(3):
-            poly[c, k] = corner[0] * ref[k, 0] + corner[1] * ref[k, 1] + corner[2] * ref[k, 2]
+            poly[c, k] = dot(corner, ref[k])
     for c in range(4, MAX_POLYGON):
         for k in range(3):
             poly[c, k] = poly[0, k]
-    scratch = np.empty((2 * MAX_POLYGON, 3))
-    valid = np.empty(2 * MAX_POLYGON, dtype=np.bool_)
     count = 4
     for coord in range(2):
         for sign in (1.0, -1.0):
             count = _clip(poly, count, coord, sign, h_ref[coord], scratch, valid)
     # Height above the reference face, on its outward side.
-    s_r = _sign(out[0] * ref[2, 0] + out[1] * ref[2, 1] + out[2] * ref[2, 2])
-    heights = np.empty(MAX_POLYGON)
+    s_r = _sign(dot(out, ref[2]))
     for k in range(MAX_POLYGON):
         heights[k] = s_r * poly[k, 2] - h_ref[2]
     # Reduce to 4 (Gregorius): the deepest, the farthest from it, the two largest triangles.
@@ -238,33 +228,27 @@ def _edge(m, edge, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap):
     """Closest points of a's edge along axis ``edge // 3`` and b's along ``edge % 3``, each the
     edge of its box furthest towards the other (Ericson 5.1.8, clamped), in all four slots."""
     i, j = edge // 3, edge % 3
-    c_a = np.zeros(3)  # first the sums over the box's axes, then the centre added
-    c_b = np.zeros(3)
+    # each box's edge centre: the sum over its axes first, then its centre added
+    sum_a, sum_b = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     for a in range(3):
-        s_a = -_sign(axes_a[a, 0] * n[0] + axes_a[a, 1] * n[1] + axes_a[a, 2] * n[2])
-        s_b = _sign(axes_b[a, 0] * n[0] + axes_b[a, 1] * n[1] + axes_b[a, 2] * n[2])
+        s_a = -_sign(dot(axes_a[a], n))
+        s_b = _sign(dot(axes_b[a], n))
         s_a = (1.0 if s_a == 0 else s_a) * (a != i)
         s_b = (1.0 if s_b == 0 else s_b) * (a != j)
-        for k in range(3):
-            c_a[k] += s_a * ha[a] * axes_a[a, k]
-            c_b[k] += s_b * hb[a] * axes_b[a, k]
-    for k in range(3):
-        c_a[k] = xa[m, k] + c_a[k]
-        c_b[k] = xb[m, k] + c_b[k]
-    r = (c_a[0] - c_b[0], c_a[1] - c_b[1], c_a[2] - c_b[2])
-    b = _dot_rows(axes_a, i, axes_b, j)
-    c = axes_a[i, 0] * r[0] + axes_a[i, 1] * r[1] + axes_a[i, 2] * r[2]
-    f = axes_b[j, 0] * r[0] + axes_b[j, 1] * r[1] + axes_b[j, 2] * r[2]
+        sum_a = add(sum_a, scale(s_a * ha[a], axes_a[a]))
+        sum_b = add(sum_b, scale(s_b * hb[a], axes_b[a]))
+    c_a = add((xa[m, 0], xa[m, 1], xa[m, 2]), sum_a)
+    c_b = add((xb[m, 0], xb[m, 1], xb[m, 2]), sum_b)
+    r = sub(c_a, c_b)
+    b = dot(axes_a[i], axes_b[j])
+    c = dot(axes_a[i], r)
+    f = dot(axes_b[j], r)
     denom = max(1.0 - b * b, NEAR_PARALLEL**2)  # ≥ |u_a × u_b|² of a valid edge axis
     s = min(max((b * f - c) / denom, -ha[i]), ha[i])
     t = min(max(b * s + f, -hb[j]), hb[j])
-    g = 0.0
-    p_a = np.empty(3)
-    p_b = np.empty(3)
-    for k in range(3):
-        p_a[k] = c_a[k] + s * axes_a[i, k]
-        p_b[k] = c_b[k] + t * axes_b[j, k]
-        g += (p_a[k] - p_b[k]) * n[k]
+    p_a = add(c_a, scale(s, axes_a[i]))
+    p_b = add(c_b, scale(t, axes_b[j]))
+    g = dot(sub(p_a, p_b), n)
     for slot in range(SLOTS):
         for k in range(3):
             arm_a[m, slot, k] = p_a[k] - xa[m, k]
@@ -281,6 +265,17 @@ def box_box(xa, qa, xb, qb, half_a, half_b, margin, arm_a, arm_b, normal, gap):
     axes = np.empty((15, 3))
     sep = np.empty(15)
     along = np.empty(15)
+    usable = np.empty(9, dtype=np.bool_)
+    work = (  # ``_face``'s scratch, once per call
+        np.empty((3, 3)),
+        np.empty(3),
+        np.empty((3, 3)),
+        np.empty(3),
+        np.empty((MAX_POLYGON, 3)),
+        np.empty((2 * MAX_POLYGON, 3)),
+        np.empty(2 * MAX_POLYGON, dtype=np.bool_),
+        np.empty(MAX_POLYGON),
+    )
     for m in range(xa.shape[0]):
         p = m % pairs
         ha, hb = half_a[p], half_b[p]
@@ -291,30 +286,24 @@ def box_box(xa, qa, xb, qb, half_a, half_b, margin, arm_a, arm_b, normal, gap):
                 axes[k, i] = ra[3 * i + k]
                 axes[3 + k, i] = rb[3 * i + k]
         axes_a, axes_b = axes[:3], axes[3:6]
-        usable = np.empty(9, dtype=np.bool_)
         for k in range(3):
             for l in range(3):
                 e = 6 + 3 * k + l
-                a, b = axes[k], axes[3 + l]
-                c = (
-                    a[1] * b[2] - a[2] * b[1],
-                    a[2] * b[0] - a[0] * b[2],
-                    a[0] * b[1] - a[1] * b[0],
-                )
-                length = math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+                c = cross(axes[k], axes[3 + l])
+                length = norm3(c)
                 usable[3 * k + l] = length > NEAR_PARALLEL
                 div = length if length > NEAR_PARALLEL else 1.0
                 for i in range(3):
                     axes[e, i] = c[i] / div
         d = (xa[m, 0] - xb[m, 0], xa[m, 1] - xb[m, 1], xa[m, 2] - xb[m, 2])
         for k in range(15):
-            along[k] = axes[k, 0] * d[0] + axes[k, 1] * d[1] + axes[k, 2] * d[2]
+            along[k] = dot(axes[k], d)
             reach = 0.0
             for a in range(3):
-                reach += abs(_dot_rows(axes, k, axes, a)) * ha[a]
+                reach += abs(dot(axes[k], axes[a])) * ha[a]
             reach_b = 0.0
             for a in range(3):
-                reach_b += abs(_dot_rows(axes, k, axes, 3 + a)) * hb[a]
+                reach_b += abs(dot(axes[k], axes[3 + a])) * hb[a]
             sep[k] = abs(along[k]) - reach - reach_b
             if k >= 6 and not usable[k - 6]:
                 sep[k] = -math.inf
@@ -341,4 +330,4 @@ def box_box(xa, qa, xb, qb, half_a, half_b, margin, arm_a, arm_b, normal, gap):
             _edge(m, ea - 6, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap)
         else:
             face = fb - 3 if ref_b else fa
-            _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap)
+            _face(m, ref_b, face, n, xa, xb, axes_a, axes_b, ha, hb, arm_a, arm_b, gap, work)

@@ -48,20 +48,7 @@ def box_box(half_a, half_b):
     def detect(xa, qa, xb, qb):
         from ..compiled import pairs as kernels
 
-        rows, shape = kernels.pair_rows(xa, qa, xb, qb)
-        arm_a, arm_b, normal = (np.empty((*shape, SLOTS, 3)) for _ in range(3))
-        gap = np.empty((*shape, SLOTS))
-        kernels.box_box(
-            *rows,
-            half_a,
-            half_b,
-            margin,
-            arm_a.reshape(-1, SLOTS, 3),
-            arm_b.reshape(-1, SLOTS, 3),
-            normal.reshape(-1, SLOTS, 3),
-            gap.reshape(-1, SLOTS),
-        )
-        return arm_a, arm_b, normal, gap
+        return kernels.run(kernels.box_box, (xa, qa, xb, qb), (half_a, half_b, margin), SLOTS)
 
     return detect
 

@@ -17,20 +17,6 @@ from .box_box import SLOTS as BOX_BOX_SLOTS
 from .box_box import box_box
 
 
-def _one_point(kernel, poses, params):
-    """Run a one-point kernel (``compiled.pairs``) on the pairs' poses ``(xa, qa, xb, qb)``
-    (…, P, 3|4): its pose arguments are ``xa, xb`` and, for a box b, ``qb``."""
-    from ..compiled import pairs as kernels
-
-    (xa, _, xb, qb), shape = kernels.pair_rows(*poses)
-    rows = (xa, xb) if kernel is kernels.sphere_sphere else (xa, xb, qb)
-    arm_a, arm_b, normal = (np.empty((*shape, 3)) for _ in range(3))
-    gap = np.empty(shape)
-    flat = (arm_a.reshape(-1, 3), arm_b.reshape(-1, 3), normal.reshape(-1, 3), gap.reshape(-1))
-    kernel(*rows, *params, *flat)
-    return arm_a, arm_b, normal, gap
-
-
 def sphere_sphere(ra, rb):
     """Detection for pairs of spheres of radii ``ra``, ``rb`` (P,): the normal along the
     centres (+z when they coincide), gap = distance − radii (``compiled.pairs``)."""
@@ -39,7 +25,7 @@ def sphere_sphere(ra, rb):
     def detect(xa, qa, xb, qb):
         from ..compiled import pairs as kernels
 
-        return _one_point(kernels.sphere_sphere, (xa, qa, xb, qb), params)
+        return kernels.run(kernels.sphere_sphere, (xa, qa, xb, qb), params)
 
     return detect
 
@@ -52,7 +38,7 @@ def sphere_box(radius, half_extents):
     def detect(xa, qa, xb, qb):
         from ..compiled import pairs as kernels
 
-        return _one_point(kernels.sphere_box, (xa, qa, xb, qb), params)
+        return kernels.run(kernels.sphere_box, (xa, qa, xb, qb), params)
 
     return detect
 
