@@ -9,6 +9,9 @@ K c ε e^(L K Δt) |y| ≈ 20 · 10 · 2.2e-16 · e² · |y| ≈ 3e-13 |y|, so 1
 largest entry of each array.
 """
 
+import importlib
+
+import numba
 import numpy as np
 import pytest
 
@@ -283,13 +286,41 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
     calls = [
         line.strip()
         for line in drv.source.split("def step(")[1].splitlines()
-        if "(e, st, data[" in line
+        if "e, st, data[" in line
     ]
     assert len(calls) == len(drv.kernels)
     for kernel, call in zip(drv.kernels, calls, strict=True):
         j = int(call.split("data[")[1].split("]")[0])
         own = (kernel.data, tuple(f.data for f in drv.forces)) if kernel.template else kernel.data
         assert _same(drv.data[j], own)
+
+
+def test_kernels_called_by_address_get_the_types_they_were_compiled_for(monkeypatch):
+    """The driver calls the contact kernels through their addresses (``calls``): each was
+    compiled for ``calls.signature(data)``, so the step tuple the driver builds must have the
+    type ``calls.step_tuple_type`` declares (a pointer call with other types would read the
+    wrong memory), and each kernel's data the type of its own."""
+    from rigid_env.sim.compiled import calls
+
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
+    scene, initial = landing_scene(dt=0.01)
+    scene.step(initial(batch_shape=(2,)))
+    drv = scene._driver
+    # The driver's own typing of ``st`` (a cached overload keeps no type map: compile a copy).
+    (signature,) = drv.module.step.signatures
+    fresh = numba.njit(drv.module.step.py_func)
+    fresh.compile(signature)
+    assert fresh.overloads[signature].type_annotation.typemap["st"] == calls.step_tuple_type()
+    assert len(drv.addresses) == sum(not k.template for k in drv.kernels) > 0
+    assert all(drv.addresses != 0)
+    for kernel, data in drv._callees:
+        function = getattr(importlib.import_module(kernel.module), kernel.name)
+        assert calls.signature(data) in function.overloads
+    lines = drv.source.split("def step(")[1].splitlines()
+    called = [line.strip() for line in lines if line.strip().startswith("call_at(")]
+    assert [int(c.split("addresses[")[1].split("]")[0]) for c in called] == list(
+        range(len(drv.addresses))
+    )
 
 
 @pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")

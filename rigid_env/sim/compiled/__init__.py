@@ -11,6 +11,10 @@ Kernel conventions (contacts and integrators written by others follow them)
 Everything is ``@njit(cache=True, error_model="numpy")``, with ``cache.njit`` (numba's, after
 the cache locator that notices an edit of any simulator file is installed), float64, no ``fastmath`` (results must not depend on the
 compiler's reassociation), no allocation in the per-step path where a scalar tuple will do.
+numba compiles a helper once per argument types, and a constant argument has its own literal
+type: ``gauss_seidel(..., 1, ...)`` and ``gauss_seidel(..., 2, ...)`` are two compiles. Pass
+``np.int64(1)`` or ``np.bool_(True)`` where one compile should serve every caller, a bare
+constant only where the specialisation is wanted (the row counts 1 and 3 of ``delassus``).
 A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
 batch element, on arrays that play the part of the ``StepContext``.
 
@@ -98,15 +102,17 @@ once: ``driver.share``), then ``steps.finite``,
 next start, zeroes the contact slots and folds the report row into ``total``, so a report
 column over k steps is its maximum over them: write columns for which that is the right
 summary, as flags, counts per step and largest values are); ``step(x0, q0, v0, w0, x, q, v, w,
-force, torque, body, report, data, slots, steps)`` allocates the scratch (displacement, contact
-slots, the start copies of several steps), builds ``st`` and loops over the batch, counting the
+force, torque, body, report, counts, data, slots, steps, addresses)`` allocates the scratch
+(displacement, contact slots, the start copies of several steps), builds ``st`` and loops over
+the batch, counting the
 elements with a bad quaternion, a non-finite result and a capped solve (the scene builds its
 report dict from the columns when read, at once when a solve was capped). ``steps.begin``,
 ``finite``, ``carry``, the integrator stage templates and the helpers a template module lists
 in ``INLINE`` are inlined into their caller: a call passes each array of ``st`` field by
 field, ~30-100 ns per call per element, and one that can raise keeps numba from pruning the
-reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). The contact
-kernels are calls, compiled once for every composition that uses them (``driver.py`` gives the
+reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). Every other
+kernel (detection, the contact kernels) is called through its address (``calls.py``): compiled
+once, for ``calls.signature(d)``, and linked into no composition (``driver.py`` gives the
 measured trade). ``step`` runs ``nogil``
 (with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as

@@ -309,7 +309,9 @@ def _event(
     c = lam.shape[0]
     for i in range(c):
         lam[i] = 0.0
-    _, converged = gauss_seidel(a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work)
+    _, converged = gauss_seidel(
+        a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work, np.bool_(False)
+    )
     du[:] = 0.0
     add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
     scaled_velocity(st, e, mass, linv, u, z)

@@ -360,7 +360,9 @@ def converge(
             for k in range(size):
                 work[saved + k] = lam[k]
             steps += newton(a, free, target, mu, lam, extra, newton_steps - steps, tolerance)
-            more, done = gauss_seidel(a, free, target, mu, lam, extra, 3, 1, tolerance, work, True)
+            more, done = gauss_seidel(
+                a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, work, np.bool_(True)
+            )
             sweeps += more
             if done:
                 return sweeps, True, steps

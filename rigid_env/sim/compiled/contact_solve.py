@@ -137,7 +137,9 @@ def solve(e, st, d):
     else:
         lam[:] = 0.0
         particle_start(short, mass, shaped, k, lam, 3)
-    sweeps, converged = gauss_seidel(a, free, target, mu, lam, extra, 3, 1, tolerance, work)
+    sweeps, converged = gauss_seidel(
+        a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, work, np.bool_(False)
+    )
     max_iterations = ints[I_MAX_ITERATIONS]
     steps = 0
     if not converged:
@@ -164,7 +166,7 @@ def solve(e, st, d):
             ints[I_NEWTON_AFTER],
             ints[I_NEWTON_STEPS],
             work,
-            True,  # the probe's sweep decomposed A_tt into ``work``
+            np.bool_(True),  # the probe's sweep decomposed A_tt into ``work``
         )
         sweeps += more
     if ints[I_WARM] != 0:

@@ -71,7 +71,7 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
     settled = False
     for _ in range(ROUNDS):
         any_bound = False
-        symmetric = True
+        symmetric = np.bool_(True)
         for i in range(c):
             live[3 * i] = on[i]
             tangent = (on[i] or budget[i]) and mu[i] > 0 and not bound[i]
@@ -79,7 +79,7 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
             live[3 * i + 2] = tangent
             any_bound = any_bound or bound[i]
             if bound[i] and on[i]:
-                symmetric = False  # a boundary contact's normal column is mixed (below)
+                symmetric = np.bool_(False)  # a boundary contact's normal column is mixed (below)
         # The budget's part of a boundary contact's friction, μ d extra, is known.
         for i in range(c):
             kn = mu[i] * extra[i]

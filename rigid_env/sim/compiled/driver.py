@@ -6,12 +6,15 @@ start slots), zeroes the contact slots and folds the report row into its running
 so each step computes what a call of its own would, bit for bit.
 
 Composition. A scene's stage tuple names its kernels (``registry``); the driver generates the
-source of a module that calls them in that order, and numba caches that module's compiled code
-to disk (``cache=True``). Generated source is the one composition numba caches across
-processes: it keys its cache on a function's file and bytecode, and a kernel received as an
-argument or a closure variable makes every new process a cache miss (measured with numba 0.68:
-closures over dispatchers and dispatcher arguments both recompile each run). So each distinct
-stage tuple compiles once, ever, and later processes import it from the cache.
+source of a module that runs them in that order, and numba caches that module's compiled code
+to disk (``cache=True``). The integrator's templates and the force terms are compiled into the
+module (a free body's step is a few hundred nanoseconds, less than a call would cost); every
+other kernel is called through its address (``calls.call_at``), compiled once for its own
+cache entry and shared by every composition. Generated source is how the integrator and the
+force terms compose with numba's cache across processes: it keys its cache on a function's file
+and bytecode, and a kernel received as a dispatcher argument or a closure variable makes every
+new process a cache miss (measured with numba 0.68). So each distinct stage tuple compiles its
+integrator and forces once, ever, and later processes import it from the cache.
 
 The generated module lives in the cache directory (``RIGID_ENV_CACHE_DIR``, else
 ``compiled/__pycache__/drivers`` in the package when writable, else
@@ -36,6 +39,7 @@ import numpy as np
 from ..state import ORIENTATION_TOLERANCE
 from . import layout
 from .cache import sources_hash
+from .calls import address
 from .first_call import first_call
 from .registry import ForceKernel, Kernel
 from .steps import BODY_TORQUE
@@ -53,15 +57,12 @@ _JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
 # A function that takes the step tuple is inlined into its caller (numba IR): a call passes
 # every array of the tuple field by field (14 arrays of 11 words each), ~30-100 ns per call
 # per element, more than a free body's arithmetic (as ``integrators``' ``load``/``store``).
-# The contact kernels are calls, each compiled once and cached, so a new composition (other
-# forces, another integrator) links them instead of compiling its own copies: a landing scene
-# with a spring added, every kernel cached, first step 61 s → 21 s (whole step, 2 cores). Their
-# work per engaged element (microseconds) dwarfs a call; inlined, they measured 4.6 → 4.3 µs
-# per element step of BoxLanding's physics on an earlier, quieter machine, and no difference
-# resolvable on this one (interleaved landing batches of 1024, 7.4-11.5 µs against 8.1-11.3).
-# What remains of a new composition's compile is the inlined integrator and, mostly, LLVM
-# optimising and emitting the linked kernels again for the new module (numba links a callee's
-# IR into each caller): ~10 s of the 21 by profile.
+# The contact kernels are called through their addresses (``calls``): each compiles once, for
+# its own cache entry, and no composition links or re-optimises it (a direct call would link
+# its IR into every driver, see ``calls``), so a new composition (other forces, another
+# integrator) compiles only its integrator and force terms. Their work per engaged element
+# (microseconds) dwarfs a call; inlined, they measured 4.6 → 4.3 µs per element step of
+# BoxLanding's physics on an earlier, quieter machine.
 _JIT_INLINE = '@njit(cache=True, error_model="numpy", inline="always")'
 
 
@@ -93,6 +94,7 @@ def generate(
         "from numba import njit",
         f"from {__package__}.rotation import quat_rotate as body_to_world",
         f"from {__package__}.steps import begin, carry, finite, fold",
+        f"from {__package__}.calls import call_at",
     ]
     templates = []
     for module in dict.fromkeys(k.module for k in kernels if k.template):
@@ -102,9 +104,6 @@ def generate(
         lines.append(f"from {f.module} import {f.name} as force_{i}")
         if f.damping is not None:
             lines.append(f"from {f.module} import {f.damping} as damping_{i}")
-    for i, k in enumerate(kernels):
-        if not k.template:
-            lines.append(f"from {k.module} import {k.name} as stage_{i}")
     # The applied world loads, the body torque turned into the world at q (skipped when zero,
     # as numpy skips None), then the force terms: the order of ``StepContext.wrench_at``.
     lines += ["", "", _JIT, "def wrench(b, x, q, v, w, fa, ta, tb, fds):"]
@@ -142,7 +141,7 @@ def generate(
         "",
         _JIT_NOGIL,
         "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,",
-        "         steps):",
+        "         steps, addresses):",
         "    size = x0.shape[0]",
         "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
         f"    contact = np.zeros((size, slots, {layout.CONTACT_WIDTH}))",
@@ -165,9 +164,13 @@ def generate(
         "                verdict = 1",
         "                break",
     ]
+    called = 0  # the kernels that are not templates, called through ``addresses`` in order
     for i, k in enumerate(kernels):
-        call = k.name if k.template else f"stage_{i}"
-        lines.append(f"            {call}(e, st, data[{index[i]}])")
+        if k.template:
+            lines.append(f"            {k.name}(e, st, data[{index[i]}])")
+        else:
+            lines.append(f"            call_at(addresses[{called}], e, st, data[{index[i]}])")
+            called += 1
     lines += [
         "            if not finite(e, st):",
         "                verdict = 2",
@@ -264,6 +267,12 @@ class Driver:
             )
         )
         self.slots = sum(k.slots for k in self.kernels)
+        # The kernels called through their addresses (``calls``), in stage order, with their
+        # data; ``addresses`` is filled on the first call, under the driver's lock.
+        self._callees = tuple(
+            (k, self.data[j]) for k, j in zip(self.kernels, index, strict=True) if not k.template
+        )
+        self.addresses = np.zeros(len(self._callees), dtype=np.int64)
         self.source = generate(self.kernels, self.forces, index)
         self.module = load(self.source)
         self.threads = threads
@@ -328,10 +337,11 @@ class Driver:
             args = (x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts)
             bad = self._dispatch(args, steps)
         else:
-            data, slots = self.data, self.slots
+            data, slots, addresses = self.data, self.slots, self.addresses
             bad = entry(
-                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps
-            )
+                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
+                steps, addresses,
+            )  # fmt: skip
         return x, q, v, w, report, bad, counts
 
     def _dispatch(self, args, steps) -> tuple[int, int, int]:
@@ -343,7 +353,7 @@ class Driver:
             kind = "contacts" if self.slots else "free"
             bad = first_call(
                 self.module.step,
-                lambda: self._serial(args, steps),
+                lambda: self._resolve() or self._serial(args, steps),
                 cache_dir(),
                 self.module.__name__,
                 kind,
@@ -361,8 +371,14 @@ class Driver:
         self._entry = _entry_point(self.module.step)
         return bad
 
+    def _resolve(self) -> None:
+        """Compile or load each called kernel for its data and note its address."""
+        for i, (kernel, data) in enumerate(self._callees):
+            function = getattr(importlib.import_module(kernel.module), kernel.name)
+            self.addresses[i] = address(function, data)
+
     def _serial(self, args, steps) -> tuple[int, int, int]:
-        return self.module.step(*args, self.data, self.slots, steps)
+        return self.module.step(*args, self.data, self.slots, steps, self.addresses)
 
     def _threaded(self, args, steps) -> tuple[int, int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
@@ -379,8 +395,10 @@ class Driver:
             (*(a[lo:hi] for a in arrays), np.empty_like(counts))
             for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
         ]
-        step, data, slots = self.module.step, self.data, self.slots
-        verdicts = list(self.pool().map(lambda chunk: step(*chunk, data, slots, steps), chunks))
+        step, data, slots, addresses = self.module.step, self.data, self.slots, self.addresses
+        verdicts = list(
+            self.pool().map(lambda chunk: step(*chunk, data, slots, steps, addresses), chunks)
+        )
         counts[:] = sum(chunk[-1] for chunk in chunks)
         return tuple(sum(v[i] for v in verdicts) for i in range(3))
 
