@@ -53,12 +53,24 @@ def _empty_like_kernel(args: tuple) -> Callable[..., object]:
 
     from rigid_env.sim.compiled.driver import _entry_point
 
+    # The driver's ``step`` takes ``addresses`` last when it calls kernels by address.
     @njit
     def empty(  # type: ignore[no-untyped-def]
         x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps
     ):
         return 0, 0, 0
 
+    # fmt: off
+    @njit
+    def calling(  # type: ignore[no-untyped-def]
+        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps,
+        addresses,
+    ):
+        return 0, 0, 0
+    # fmt: on
+
+    if len(args) > 16:
+        empty = calling  # type: ignore[assignment]
     empty(*args)
     return _entry_point(empty)
 
@@ -84,7 +96,7 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     _, flat, qflat, rflat, zero, _ = drv._last
     outputs = (np.empty(flat), np.empty(qflat), np.empty(flat), np.empty(flat))
     report, counts = np.zeros(rflat), np.zeros((1, 3))
-    args = (x0, q0, v0, w0, *outputs, zero, zero, zero, report, counts, drv.data, drv.slots, 1)
+    args = (x0, q0, v0, w0, *outputs, zero, zero, zero, report, counts, *drv.tail(1))
     entry = drv._entry
     out["kernel"] = best_us(lambda: entry(*args), block_s, repeats)
     empty = _empty_like_kernel(args)

@@ -16,6 +16,7 @@ NUMPY_ONLY = {
     "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
     "test_compiled_contacts.py": "compares the backends itself (explicit backend= everywhere)",
     "test_compiled_cache.py": "tests numba's cache, not a step",
+    "test_compile_helper.py": "tests the compile helper, not a step",
     "test_disable_jit.py": "runs the compiled kernels as Python itself (backend set explicitly)",
     "test_pair_detection.py": "tests the pair detection kernels, which both backends call",
     "test_min_norm.py": "tests one compiled kernel against numpy's pinv, not a step",

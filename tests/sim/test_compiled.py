@@ -241,6 +241,8 @@ def test_composition_follows_the_stage_tuple():
     assert [f"force_{i}(" in forces for i in range(3)] == [True, True, True]
     free = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled")
     assert "force_0" not in free._driver.source
+    # Nothing is called by address in a free body's step: it takes no addresses at all.
+    assert free._driver.addresses is None and "addresses" not in free._driver.source
 
 
 def test_compiled_kernels_call_lapack_only_if_scipy_is_a_core_dependency():
@@ -286,7 +288,7 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
     calls = [
         line.strip()
         for line in drv.source.split("def step(")[1].splitlines()
-        if "e, st, data[" in line
+        if "(e, st, data[" in line or "e, ref, data[" in line
     ]
     assert len(calls) == len(drv.kernels)
     for kernel, call in zip(drv.kernels, calls, strict=True):
@@ -296,10 +298,10 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
 
 
 def test_kernels_called_by_address_get_the_types_they_were_compiled_for(monkeypatch):
-    """The driver calls the contact kernels through their addresses (``calls``): each was
-    compiled for ``calls.signature(data)``, so the step tuple the driver builds must have the
-    type ``calls.step_tuple_type`` declares (a pointer call with other types would read the
-    wrong memory), and each kernel's data the type of its own."""
+    """The driver calls the contact kernels through their addresses (``calls``), passing the
+    step tuple by reference: each was compiled for ``calls.signature(data)``, so the tuple the
+    driver builds must have the type ``calls.step_tuple_type`` declares (a pointer call with
+    other types would read the wrong memory), and each kernel's data the type of its own."""
     from rigid_env.sim.compiled import calls
 
     monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
@@ -310,7 +312,9 @@ def test_kernels_called_by_address_get_the_types_they_were_compiled_for(monkeypa
     (signature,) = drv.module.step.signatures
     fresh = numba.njit(drv.module.step.py_func)
     fresh.compile(signature)
-    assert fresh.overloads[signature].type_annotation.typemap["st"] == calls.step_tuple_type()
+    typemap = fresh.overloads[signature].type_annotation.typemap
+    assert typemap["st"] == calls.step_tuple_type()
+    assert typemap["ref"] == calls.StepRef(calls.step_tuple_type())
     assert len(drv.addresses) == sum(not k.template for k in drv.kernels) > 0
     assert all(drv.addresses != 0)
     for kernel, data in drv._callees:

@@ -113,7 +113,8 @@ field, ~30-100 ns per call per element, and one that can raise keeps numba from 
 reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). Every other
 kernel (detection, the contact kernels) is called through its address (``calls.py``): compiled
 once, for ``calls.signature(d)``, and linked into no composition (``driver.py`` gives the
-measured trade). ``step`` runs ``nogil``
+measured trade); they take ``st`` by reference (a ``calls.StepRef``: index it with constants,
+as the tuple). A cold first step compiles them on two cores (``compile_helper.py``). ``step`` runs ``nogil``
 (with ``backend="compiled-threads"`` the driver runs it on one
 contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
 its parallel loop bodies accept no tuples of arrays). It

@@ -37,9 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..state import ORIENTATION_TOLERANCE
-from . import layout
+from . import compile_helper, layout
 from .cache import sources_hash
-from .calls import address
 from .first_call import first_call
 from .registry import ForceKernel, Kernel
 from .steps import BODY_TORQUE
@@ -94,7 +93,7 @@ def generate(
         "from numba import njit",
         f"from {__package__}.rotation import quat_rotate as body_to_world",
         f"from {__package__}.steps import begin, carry, finite, fold",
-        f"from {__package__}.calls import call_at",
+        f"from {__package__}.calls import as_ref, call_at",
     ]
     templates = []
     for module in dict.fromkeys(k.module for k in kernels if k.template):
@@ -141,7 +140,11 @@ def generate(
         "",
         _JIT_NOGIL,
         "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,",
-        "         steps, addresses):",
+        # ``addresses`` only where a kernel is called by it (unboxing it costs a free body's
+        # batch-1 step ~0.1 µs)
+        "         steps, addresses):"
+        if any(not k.template for k in kernels)
+        else "         steps):",
         "    size = x0.shape[0]",
         "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
         f"    contact = np.zeros((size, slots, {layout.CONTACT_WIDTH}))",
@@ -150,6 +153,8 @@ def generate(
         "        x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()",
         "        total = np.zeros_like(report)",
         "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
+        # the called kernels take st by reference (``calls.as_ref``)
+        "    ref = as_ref(st)" if any(not k.template for k in kernels) else "    ref = None",
         "    counts[:] = 0.0  # (steps, 3): per step, the engaged, capped and warm-started elements",
         "    bad_orientation = 0",
         "    diverged = 0",
@@ -169,7 +174,7 @@ def generate(
         if k.template:
             lines.append(f"            {k.name}(e, st, data[{index[i]}])")
         else:
-            lines.append(f"            call_at(addresses[{called}], e, st, data[{index[i]}])")
+            lines.append(f"            call_at(addresses[{called}], e, ref, data[{index[i]}])")
             called += 1
     lines += [
         "            if not finite(e, st):",
@@ -272,7 +277,7 @@ class Driver:
         self._callees = tuple(
             (k, self.data[j]) for k, j in zip(self.kernels, index, strict=True) if not k.template
         )
-        self.addresses = np.zeros(len(self._callees), dtype=np.int64)
+        self.addresses = np.zeros(len(self._callees), dtype=np.int64) if self._callees else None
         self.source = generate(self.kernels, self.forces, index)
         self.module = load(self.source)
         self.threads = threads
@@ -338,10 +343,16 @@ class Driver:
             bad = self._dispatch(args, steps)
         else:
             data, slots, addresses = self.data, self.slots, self.addresses
-            bad = entry(
-                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
-                steps, addresses,
-            )  # fmt: skip
+            if addresses is None:
+                bad = entry(
+                    x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
+                    steps,
+                )  # fmt: skip
+            else:
+                bad = entry(
+                    x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
+                    steps, addresses,
+                )  # fmt: skip
         return x, q, v, w, report, bad, counts
 
     def _dispatch(self, args, steps) -> tuple[int, int, int]:
@@ -372,13 +383,21 @@ class Driver:
         return bad
 
     def _resolve(self) -> None:
-        """Compile or load each called kernel for its data and note its address."""
-        for i, (kernel, data) in enumerate(self._callees):
-            function = getattr(importlib.import_module(kernel.module), kernel.name)
-            self.addresses[i] = address(function, data)
+        """Compile or load each called kernel for its data (on two cores when several are
+        cold: ``compile_helper``) and note its address."""
+        if self.addresses is None:
+            return
+        callees = [(k.module, k.name, data) for k, data in self._callees]
+        self.addresses[:] = compile_helper.addresses(callees, cache_dir())
+
+    def tail(self, steps: int) -> tuple:
+        """The compiled ``step``'s arguments after the arrays (``__call__`` writes them out)."""
+        if self.addresses is None:
+            return self.data, self.slots, steps
+        return self.data, self.slots, steps, self.addresses
 
     def _serial(self, args, steps) -> tuple[int, int, int]:
-        return self.module.step(*args, self.data, self.slots, steps, self.addresses)
+        return self.module.step(*args, *self.tail(steps))
 
     def _threaded(self, args, steps) -> tuple[int, int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
@@ -395,10 +414,8 @@ class Driver:
             (*(a[lo:hi] for a in arrays), np.empty_like(counts))
             for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
         ]
-        step, data, slots, addresses = self.module.step, self.data, self.slots, self.addresses
-        verdicts = list(
-            self.pool().map(lambda chunk: step(*chunk, data, slots, steps, addresses), chunks)
-        )
+        step, tail = self.module.step, self.tail(steps)
+        verdicts = list(self.pool().map(lambda chunk: step(*chunk, *tail), chunks))
         counts[:] = sum(chunk[-1] for chunk in chunks)
         return tuple(sum(v[i] for v in verdicts) for i in range(3))
 

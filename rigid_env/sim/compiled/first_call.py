@@ -1,7 +1,7 @@
 """A driver's first call: one process compiles, the others wait and load; one line says so.
 
-numba compiles a driver's ``step`` (and every kernel it calls) on its first call and caches the
-machine code on disk. Two hazards come with processes that start together on an empty cache
+numba compiles a driver's ``step`` on its first call, after the kernels it calls by address
+(``calls``; on two cores, ``compile_helper``), and caches the machine code on disk. Two hazards come with processes that start together on an empty cache
 (async vector envs, ``SubprocVecEnv``, Ray trials):
 
 - each compiles the same code, so four processes on two cores take four compiles' time;
@@ -49,7 +49,7 @@ LOG = logging.getLogger("rigid_env.compile")
 TIMES_NAME = "compile_times.json"
 # First compiles with empty caches on 2 cores, from the bench's compile run (README, Limits):
 # what a user is told before the first compile of a kind on a machine.
-USUAL_SECONDS = {"contacts": 145.0, "free": 8.0}
+USUAL_SECONDS = {"contacts": 40.0, "free": 6.0}
 
 
 def is_cached(dispatcher) -> bool:
