@@ -101,6 +101,8 @@ def speed_targets(doc: dict) -> str:
 def compile_summary(doc: dict) -> str:
     """One sentence from the speed run's compile probe: a scene's first step in a fresh process,
     cold (empty caches: it compiles) and cached, for the free body and the landing scene."""
+    from . import speed
+
     runs = {(r["case"], r["run"]): r["first_step_s"] for r in doc["compile"]}
 
     def both(case: str) -> str:
@@ -112,10 +114,21 @@ def compile_summary(doc: dict) -> str:
         if spring is None
         else f"; the same box with a spring and damping added, after it: {spring:.1f} s"
     )
+    wall = {(r["case"], r["run"]): r["process_s"] for r in doc["compile"]}
+    together = wall.get(("landing", "together"))
+    crowd = (
+        ""
+        if together is None
+        else (
+            f"; {speed.TOGETHER} landing processes started together on empty caches all took "
+            f"their first step within {together:.1f} s (one alone: "
+            f"{wall[('landing', 'cold')]:.1f} s, whole processes)"
+        )
+    )
     return (
         f"The first step of each new scene kind compiles its kernels: {both('landing')} for a "
         f"box on the ground, {both('splitting')} for a free body, in the speed run's fresh "
-        f"processes{reuse}; the compiled code is cached on disk for later processes."
+        f"processes{reuse}{crowd}; the compiled code is cached on disk for later processes."
     )
 
 

@@ -376,33 +376,64 @@ COMPILE_RUNS = (
 )
 
 
+TOGETHER = 4  # processes that start together on empty caches (vector envs, Ray trials)
+
+
+def _probe_env(tmp: str) -> dict[str, str]:
+    return {
+        **os.environ,
+        "NUMBA_CACHE_DIR": os.path.join(tmp, "numba"),
+        "RIGID_ENV_CACHE_DIR": os.path.join(tmp, "drivers"),
+        "RIGID_ENV_BACKEND": "auto",
+    }
+
+
+def _probes(case: str, env: dict[str, str], count: int) -> list[dict[str, Any]]:
+    """``count`` probe processes of ``case`` started together; each one's figures."""
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", _COMPILE_PROBE, case],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(count)
+    ]
+    rows = []
+    for proc in procs:
+        out, err = proc.communicate()
+        if proc.returncode != 0:
+            raise subprocess.CalledProcessError(proc.returncode, proc.args, out, err)
+        rows.append(json.loads(out.strip().splitlines()[-1]))
+    return rows
+
+
 def compile_times(progress: report.Progress | None = None) -> list[dict[str, Any]]:
     """Seconds to import rigid_env.sim, build a scene and take its first step in a fresh
     process, with empty numba and driver caches (``cold``: everything compiles) and again with
-    the caches the first run wrote (``cached``); last, the landing scene with a spring and
-    damping added, with the landing's caches (``COMPILE_RUNS``)."""
+    the caches the first run wrote (``cached``); then the landing scene with a spring and
+    damping added, with the landing's caches (``COMPILE_RUNS``); last, ``TOGETHER`` landing
+    processes started together on empty caches (``together``: the slowest one's first step,
+    and the wall time until all have stepped)."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        env = {
-            **os.environ,
-            "NUMBA_CACHE_DIR": os.path.join(tmp, "numba"),
-            "RIGID_ENV_CACHE_DIR": os.path.join(tmp, "drivers"),
-            "RIGID_ENV_BACKEND": "auto",
-        }
+        env = _probe_env(tmp)
         for case, run in COMPILE_RUNS:
             if progress:
                 progress(f"compile {case} {run}")
             start = time.perf_counter()
-            out = subprocess.run(
-                [sys.executable, "-c", _COMPILE_PROBE, case],
-                env=env,
-                capture_output=True,
-                text=True,
-                check=True,
-            )
-            row = json.loads(out.stdout.strip().splitlines()[-1])
+            (row,) = _probes(case, env, 1)
             row.update(case=case, run=run, process_s=time.perf_counter() - start)
             rows.append(row)
+    with tempfile.TemporaryDirectory() as tmp:
+        if progress:
+            progress(f"compile landing, {TOGETHER} processes together")
+        start = time.perf_counter()
+        together = _probes("landing", _probe_env(tmp), TOGETHER)
+        slowest = max(together, key=lambda r: r["first_step_s"])
+        slowest.update(case="landing", run="together", process_s=time.perf_counter() - start)
+        rows.append(slowest)
     return rows
 
 

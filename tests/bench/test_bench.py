@@ -315,3 +315,26 @@ def test_speed_covers_contact_scenes_and_breakdowns_add_up(runs):
         "restitute",
         "solve_contacts",
     ]
+
+
+def test_compile_sentence_reports_processes_started_together():
+    """The README's compile sentence quotes the probe's rows, the processes that started
+    together (wall time of all) beside one cold process, when the run has them."""
+    from rigid_env.bench import readme, speed
+
+    rows = [
+        {"case": c, "run": r, "first_step_s": f, "process_s": p}
+        for c, r, f, p in [
+            ("splitting", "cold", 5.0, 6.0),
+            ("splitting", "cached", 0.4, 1.1),
+            ("landing", "cold", 40.0, 41.5),
+            ("landing", "cached", 0.5, 1.2),
+            ("landing", "together", 44.0, 47.25),
+        ]
+    ]
+    sentence = readme.compile_summary({"compile": rows})
+    assert "40.0 s (0.5 s cached) for a box on the ground" in sentence
+    assert f"{speed.TOGETHER} landing processes started together" in sentence
+    assert "within 47.2 s (one alone: 41.5 s" in sentence
+    without = readme.compile_summary({"compile": rows[:4]})
+    assert "together" not in without
