@@ -29,6 +29,7 @@ from .calls import address
 from .first_call import fcntl, is_cached
 
 ENV = "RIGID_ENV_COMPILE_HELPER"
+_ROOT = Path(__file__).resolve().parents[3]  # the directory that holds ``rigid_env``
 
 
 def compile_size(function) -> int:
@@ -93,6 +94,9 @@ def _start_helper(callees) -> subprocess.Popen | None:
     try:
         proc = subprocess.Popen(
             [sys.executable, "-m", __name__],
+            # where this process found the package (``-m`` puts the working directory first
+            # on the path, which may hold another checkout)
+            cwd=_ROOT,
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
