@@ -30,6 +30,7 @@ from .first_call import fcntl, is_cached
 
 ENV = "RIGID_ENV_COMPILE_HELPER"
 _ROOT = Path(__file__).resolve().parents[3]  # the directory that holds ``rigid_env``
+LINGER_S = 60.0  # how long a finished step waits for its helper to exit before killing it
 
 
 def compile_size(function) -> int:
@@ -92,6 +93,7 @@ def _start_helper(callees) -> subprocess.Popen | None:
     if os.environ.get(ENV, "1") == "0" or (os.cpu_count() or 1) < 2 or not sys.executable:
         return None
     try:
+        payload = pickle.dumps(list(callees))
         proc = subprocess.Popen(
             [sys.executable, "-m", __name__],
             # where this process found the package (``-m`` puts the working directory first
@@ -101,10 +103,15 @@ def _start_helper(callees) -> subprocess.Popen | None:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
+    except (OSError, TypeError, pickle.PicklingError):
+        return None
+    try:
         assert proc.stdin is not None
-        proc.stdin.write(pickle.dumps(list(callees)))
+        proc.stdin.write(payload)
         proc.stdin.close()
-    except (OSError, pickle.PicklingError):
+    except OSError:  # it died before reading: this process compiles everything itself
+        proc.kill()
+        proc.wait()
         return None
     return proc
 
@@ -126,7 +133,12 @@ def addresses(callees, directory: Path) -> list[int]:
         with _holding(directory / f"{module}.{name}.lock", wait=True):
             out[i] = address(functions[i], data)
     if helper is not None:
-        helper.wait()  # it has nothing left to do: every lock it could take is free
+        # Every kernel is compiled: the helper has at most some cached ones left to load.
+        try:
+            helper.wait(timeout=LINGER_S)
+        except subprocess.TimeoutExpired:
+            helper.kill()
+            helper.wait()
     return out
 
 
