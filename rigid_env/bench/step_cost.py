@@ -47,13 +47,13 @@ def best_us(fn: Callable[[], object], block_s: float, repeats: int) -> float:
     return best * 1e6
 
 
-def _empty_like_kernel(args: tuple) -> Callable[..., object]:
+def _empty_like_kernel(args: tuple, calling: bool) -> Callable[..., object]:
     """A compiled function of the step's signature that does nothing, compiled for ``args``."""
     from numba import njit
 
     from rigid_env.sim.compiled.driver import _entry_point
 
-    # The driver's ``step`` takes ``addresses`` last when it calls kernels by address.
+    # ``calling``: the driver's ``step`` calls kernels by address and takes ``addresses`` last.
     @njit
     def empty(  # type: ignore[no-untyped-def]
         x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps
@@ -62,15 +62,15 @@ def _empty_like_kernel(args: tuple) -> Callable[..., object]:
 
     # fmt: off
     @njit
-    def calling(  # type: ignore[no-untyped-def]
+    def calling_step(  # type: ignore[no-untyped-def]
         x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps,
         addresses,
     ):
         return 0, 0, 0
     # fmt: on
 
-    if len(args) > 16:
-        empty = calling  # type: ignore[assignment]
+    if calling:
+        empty = calling_step  # type: ignore[assignment]
     empty(*args)
     return _entry_point(empty)
 
@@ -99,7 +99,7 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     args = (x0, q0, v0, w0, *outputs, zero, zero, zero, report, counts, *drv.tail(1))
     entry = drv._entry
     out["kernel"] = best_us(lambda: entry(*args), block_s, repeats)
-    empty = _empty_like_kernel(args)
+    empty = _empty_like_kernel(args, calling=drv.addresses is not None)
     out["empty kernel"] = best_us(lambda: empty(*args), block_s, repeats)
     out["Python in Scene.step"] = out["Scene.step"] - out["driver call"]
     out["Python in the driver"] = out["driver call"] - out["kernel"]

@@ -14,8 +14,8 @@ as usual; each kernel is compiled for its one signature (``address``), once, und
 cache entry, and shared by every composition that runs it.
 
 The step tuple goes by reference. numba passes a tuple of arrays to a called function field by
-field (14 arrays of 11 words), ~40 ns per call more than a linked call, which LLVM inlines;
-six calls per element step cost the whole-episode landing bench 8 %. So the driver stores
+field (14 arrays of 11 words), more than the work of a resting element's contact kernels
+(``docs/performance.md`` has the measurement). So the driver stores
 ``st`` once per call in its own frame and passes a pointer to it (``as_ref``): a kernel compiled
 for a ``StepRef`` indexes it as it would the tuple (``st[X]``, constant indices only), each
 index a load of that array from the stored tuple; a call then costs a few nanoseconds.

@@ -135,16 +135,15 @@ def generate(
     # per call, so concurrent steps of one scene (threads) cannot mix. An element's steps are
     # written into the loop, not an inlined function: binding ``st``, ``data`` and ``total`` as
     # its arguments costs each element an atomic incref and decref per array (see steps.py).
+    calling = any(not k.template for k in kernels)  # some kernel is called by address
     lines += [
         "",
         "",
         _JIT_NOGIL,
         "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,",
-        # ``addresses`` only where a kernel is called by it (unboxing it costs a free body's
-        # batch-1 step ~0.1 µs)
-        "         steps, addresses):"
-        if any(not k.template for k in kernels)
-        else "         steps):",
+        # ``addresses`` only where a kernel is called by it (unboxing an array is a visible part
+        # of a free body's batch-1 step)
+        "         steps, addresses):" if calling else "         steps):",
         "    size = x0.shape[0]",
         "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
         f"    contact = np.zeros((size, slots, {layout.CONTACT_WIDTH}))",
@@ -153,8 +152,10 @@ def generate(
         "        x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()",
         "        total = np.zeros_like(report)",
         "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
-        # the called kernels take st by reference (``calls.as_ref``)
-        "    ref = as_ref(st)" if any(not k.template for k in kernels) else "    ref = None",
+    ]
+    if calling:  # the called kernels take st by reference (``calls.as_ref``)
+        lines.append("    ref = as_ref(st)")
+    lines += [
         "    counts[:] = 0.0  # (steps, 3): per step, the engaged, capped and warm-started elements",
         "    bad_orientation = 0",
         "    diverged = 0",
