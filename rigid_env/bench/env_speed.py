@@ -3,6 +3,7 @@
     python -m rigid_env.bench.env_speed RigidEnv/BoxLanding-v0 --num-envs 1024 --seconds 10
     python -m rigid_env.bench.env_speed --seconds 5      # both RigidEnv envs beside Hopper-v5
     python -m rigid_env.bench.env_speed --backend compiled-threads   # the batch over the cores
+    python -m rigid_env.bench.env_speed --randomise --num-envs 64   # per-env physics drawn
 
 Every env runs random actions (with its resets) for about ``--seconds`` per measurement. The
 simulator's ``Scene.step`` is timed by its public per-stage timer (``scene.timer =
@@ -35,6 +36,17 @@ MIN_SECONDS = 0.01  # long enough for at least one step to be timed
 ACTION_POOL = 64  # random actions drawn before timing and cycled, so drawing is not timed
 RIGID_ENVS = ("RigidEnv/Reorient-v0", "RigidEnv/BoxLanding-v0")
 PEER = "Hopper-v5"  # Gymnasium's MuJoCo v5 hopper: the reference single-env rate
+# ``--randomise``: every physical parameter each env draws per episode (its mass, inertia and
+# ground), over the ranges a domain-randomised training would use.
+RANDOMISED = {
+    "RigidEnv/Reorient-v0": dict(mass_scale_range=(0.5, 2.0), inertia_scale_range=(0.8, 1.25)),
+    "RigidEnv/BoxLanding-v0": dict(
+        mass_scale_range=(0.5, 2.0),
+        inertia_scale_range=(0.8, 1.25),
+        friction_range=(0.2, 1.0),
+        restitution_range=(0.0, 0.6),
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -146,6 +158,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         choices=BACKENDS,
         help="the RigidEnv envs' backend argument (default: RIGID_ENV_BACKEND, else auto)",
     )
+    parser.add_argument(
+        "--randomise",
+        action="store_true",
+        help="draw each env's mass, inertia and ground per episode (RANDOMISED)",
+    )
     args = parser.parse_args(argv)
     if args.seconds < MIN_SECONDS:
         raise cli.UsageError(f"--seconds must be at least {MIN_SECONDS}, got {args.seconds}")
@@ -155,12 +172,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     singles = {}
     kwargs = {} if args.backend is None else {"backend": args.backend}
     for env_id in args.env_id or RIGID_ENVS:
-        print(env_id)
-        single = run(gym.make(env_id, **kwargs), seconds=args.seconds, seed=args.seed)
+        if args.randomise and env_id not in RANDOMISED:
+            raise cli.UsageError(f"--randomise: no randomised physics defined for {env_id}")
+    for env_id in args.env_id or RIGID_ENVS:
+        print(env_id + (" (randomised physics)" if args.randomise else ""))
+        made = dict(kwargs, **RANDOMISED[env_id]) if args.randomise else kwargs
+        single = run(gym.make(env_id, **made), seconds=args.seconds, seed=args.seed)
         singles[env_id] = single
         print(_single_line(single))
         vec_env = gym.make_vec(
-            env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point", **kwargs
+            env_id, num_envs=args.num_envs, vectorization_mode="vector_entry_point", **made
         )
         vec = run(vec_env, seconds=args.seconds, seed=args.seed)
         batch_ms = 1e3 * vec.wall_s * args.num_envs / vec.env_steps

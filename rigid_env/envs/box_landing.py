@@ -439,31 +439,29 @@ class BoxLandingTask(HoldTask):
         self._measure(self._all)
         self.touching = self._clearance < cfg.contact_tolerance
 
-    def build_scene(
-        self,
-        body: sim.Body | None = None,
-        friction: float | None = None,
-        restitution: float | None = None,
-    ) -> sim.Scene:
-        """The scene of the configured body and ground, or of an episode's (randomised)."""
+    def build_scene(self) -> sim.Scene:
+        """The scene of the configured body and ground (an episode's randomised physics is a
+        row of ``parameters``: :meth:`episode_parameters`)."""
         cfg = self.config
-        friction = cfg.friction if friction is None else friction
-        restitution = cfg.restitution if restitution is None else restitution
         return sim.Scene(
-            self.body if body is None else body,
+            self.body,
             cfg.dt,
             integrator=cfg.integrator,
             gravity=(0.0, 0.0, -GRAVITY),
-            ground=sim.Ground(restitution=restitution, friction=friction),
+            ground=sim.Ground(restitution=cfg.restitution, friction=cfg.friction),
             contact_solver=cfg.contact_solver,
             backend=cfg.backend,
         )
 
-    def episode_scene(self, i: int) -> sim.Scene:
-        values = self.episode_values
-        friction = values["friction"][i] if "friction" in values else None
-        restitution = values["restitution"][i] if "restitution" in values else None
-        return self.build_scene(self.episode_body(i), friction, restitution)
+    def episode_parameters(self, index: np.ndarray) -> dict[str, np.ndarray]:
+        """The body's (``HoldTask.episode_parameters``), and the ground's friction and
+        restitution of envs ``index`` this episode."""
+        rows = super().episode_parameters(index)
+        cfg = self.config
+        for key, nominal in (("friction", cfg.friction), ("restitution", cfg.restitution)):
+            values = self.episode_values.get(key)
+            rows[key] = np.full(len(index), nominal) if values is None else values[index]
+        return rows
 
     # --- resets ---------------------------------------------------------------------------------
 
@@ -596,19 +594,16 @@ class BoxLandingTask(HoldTask):
         begins and ends within one physics step counts) for :meth:`_step_events`. A period
         with a capped contact solve is counted per env (``contact_capped``) and warned once
         (:mod:`~rigid_env.envs.contact_caps`)."""
-        if self.scenes is None:
-            self.state = contact_caps.step_quietly(
-                self.scene, self.state, body_torque=torque[:, None, :], steps=self.frame_skip
-            )
-            report = self.scene.report.get("contacts")
-            touched = None if report is None else report.touched
-            capped = contact_caps.capped_mask(report)
-        else:
-            self.state, reports = self.step_scenes(torque, contact_caps.step_quietly)
-            contacts = [r["contacts"] for r in reports]  # a ground scene always reports
-            touched = np.concatenate([r.touched for r in contacts])
-            masks = [contact_caps.capped_mask(r) for r in contacts]
-            capped = np.concatenate([np.zeros(1, bool) if m is None else m for m in masks])
+        self.state = contact_caps.step_quietly(
+            self.scene,
+            self.state,
+            body_torque=torque[:, None, :],
+            steps=self.frame_skip,
+            parameters=self.parameters,
+        )
+        report = self.scene.report.get("contacts")
+        touched = None if report is None else report.touched
+        capped = contact_caps.capped_mask(report)
         self._touched = self._no_contact_report if touched is None else touched
         if capped is not None:
             self.contact_capped += capped

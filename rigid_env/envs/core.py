@@ -89,9 +89,9 @@ class BatchedTask(ABC):
     start_options: tuple[str, ...] = ()  # the keys reset(options=...) takes
 
     @abstractmethod
-    def build_scene(self, *args: Any) -> Any:
+    def build_scene(self) -> Any:
         """The task's :class:`rigid_env.sim.Scene`, built from the validated configuration (a
-        task with randomised physics takes an episode's body and materials as arguments)."""
+        task with randomised physics gives each env its row of ``sim.Parameters``)."""
 
     @abstractmethod
     def draw(self, rng: np.random.Generator) -> np.ndarray:
@@ -149,11 +149,17 @@ class BatchedTask(ABC):
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state.pop("scene", None)
+        if state.get("parameters") is not None:  # (they belong to the scene: rebuilt with it)
+            state["_parameter_values"] = state["parameters"].values()
+            state["parameters"] = None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        values = state.pop("_parameter_values", None)
         self.__dict__.update(state)
         self.scene = self.build_scene()
+        if values is not None:
+            self.parameters = self.scene.parameters(**values)
 
 
 def _single_info(info: dict[str, np.ndarray]) -> dict[str, Any]:

@@ -229,8 +229,9 @@ class HoldTask(BatchedTask):
     from the env's generator; with no randomisation nothing more is drawn, so the default
     episodes do not depend on it. The torque limit scales the action. A physical parameter
     (mass, inertia, the ground's friction and restitution) makes the env's physics its own:
-    each env then steps its own scene, built at its reset from its draws (the simulator's
-    model is one per scene), one call per env instead of one for the batch.
+    the scene then steps every env with its own row of ``sim.Parameters`` (``parameters``),
+    rewritten for the envs a reset draws for, still one simulator call for the batch. That
+    needs the compiled step: with ``backend="numpy"`` such a configuration is refused.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
     off the state in one call, and the shared hold timer and reward terms are one more. Its
@@ -319,8 +320,15 @@ class HoldTask(BatchedTask):
             for name in self.randomised
             if name != "torque_scale_range"
         }
-        # One scene per env when a physical parameter is randomised (``reset_envs``).
-        self.scenes: list[sim.Scene] | None = [self.scene] * n if self.episode_values else None
+        # Per-env model parameters when a physical parameter is randomised (``reset_envs``
+        # writes the drawn envs' rows; built at the first reset, which draws for every env).
+        self.parameters: sim.Parameters | None = None
+        if self.episode_values and self.scene.backend != "compiled":
+            names = ", ".join(n for n in self.randomised if n != "torque_scale_range")
+            raise ValueError(
+                f"{names}: randomised physics steps every env with its own parameters, which "
+                f"needs the compiled step; backend {config.backend!r} steps with numpy"
+            )
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order
@@ -371,43 +379,19 @@ class HoldTask(BatchedTask):
         """Step the physics for one action: ``frame_skip`` steps in one simulator call, the
         torque fixed in the body frame (the integrator turns it into the world at each of its
         load evaluations). Tasks with sensors to latch at every physics step override this."""
-        if self.scenes is None:
-            self.state = self.scene.step(
-                self.state, body_torque=torque[:, None, :], steps=self.frame_skip
-            )
-        else:
-            self.state = self.step_scenes(torque)[0]
-
-    def step_scenes(
-        self, torque: np.ndarray, step: Any = None
-    ) -> tuple[sim.State, list[dict[str, Any]]]:
-        """One action of every env on its own scene (randomised physics): the new batched
-        state and each scene's ``report``. ``step(scene, state, body_torque, steps)`` steps
-        one env (default ``scene.step``)."""
-        assert self.scenes is not None
-        parts, reports = [], []
-        for i, scene in enumerate(self.scenes):
-            state = self.state[i : i + 1]
-            kwargs: dict[str, Any] = dict(
-                body_torque=torque[i : i + 1, None, :], steps=self.frame_skip
-            )
-            parts.append(
-                scene.step(state, **kwargs) if step is None else step(scene, state, **kwargs)
-            )
-            reports.append(scene.report)
-        arrays = (
-            np.concatenate(fields) for fields in zip(*(p.arrays() for p in parts), strict=True)
+        self.state = self.scene.step(
+            self.state,
+            body_torque=torque[:, None, :],
+            steps=self.frame_skip,
+            parameters=self.parameters,
         )
-        return sim.State(*arrays), reports
 
-    def episode_body(self, i: int) -> sim.Body:
-        """Env ``i``'s body this episode: the mass scale s makes it s times denser (mass and
-        inertia × s), the inertia scale k moves mass outward (inertia × k)."""
-        return sim.Body(self.masses[i], self.inertias[i], self.body.shape)
-
-    def episode_scene(self, i: int) -> sim.Scene:
-        """Env ``i``'s scene this episode (``build_scene`` of its body and draws)."""
-        return self.build_scene(self.episode_body(i))
+    def episode_parameters(self, index: np.ndarray) -> dict[str, np.ndarray]:
+        """The model parameters of envs ``index`` this episode (``Scene.parameters``' arrays,
+        one row per env): the mass scale s makes the body s times denser (mass and inertia
+        × s), the inertia scale k moves mass outward (inertia × k). Tasks with a ground add
+        its material."""
+        return {"mass": self.masses[index, None], "inertia": self.inertias[index, None]}
 
     # --- shared ---------------------------------------------------------------------------------
 
@@ -429,14 +413,16 @@ class HoldTask(BatchedTask):
                     self.torque_limit[index] = value[:, None] * self.max_torque
                 else:
                     self.episode_values[self.RANDOMISED[name]][index] = value
-            if self.scenes is not None:
+            if self.episode_values:
                 values = self.episode_values
                 mass = values.get("mass_scale", np.ones(self.num_envs))[index]
                 inertia = values.get("inertia_scale", np.ones(self.num_envs))[index]
                 self.masses[index] = mass * self.body.mass
                 self.inertias[index] = (mass * inertia)[:, None, None] * self.inertia
-                for i in index:
-                    self.scenes[i] = self.episode_scene(int(i))
+                if self.parameters is None:
+                    self.parameters = self.scene.parameters(**self.episode_parameters(self._all))
+                else:
+                    self.parameters.update(index, **self.episode_parameters(index))
         self.reset_start(index, draws)
 
     def check_start(self, options: Mapping[str, Any], k: int) -> dict[str, Any]:

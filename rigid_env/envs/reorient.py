@@ -275,12 +275,12 @@ class ReorientTask(HoldTask):
         self._meas = np.empty((n, 9))  # see kernels.reorient_measure
         self._measure(self._all)
 
-    def build_scene(self, body: sim.Body | None = None) -> sim.Scene:
-        """The scene of the configured body, or of ``body`` (an episode's, randomised)."""
+    def build_scene(self) -> sim.Scene:
+        """The scene of the configured body (an episode's randomised mass and inertia are a
+        row of ``parameters``: ``HoldTask.episode_parameters``)."""
         cfg = self.config
         # a free body only: no gravity, ground or springs
-        body = self.body if body is None else body
-        return sim.Scene(body, cfg.dt, integrator=cfg.integrator, backend=cfg.backend)
+        return sim.Scene(self.body, cfg.dt, integrator=cfg.integrator, backend=cfg.backend)
 
     # --- resets ---------------------------------------------------------------------------------
 

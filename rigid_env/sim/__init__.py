@@ -10,6 +10,7 @@ from .contacts import ContactReport, ContactSolverWarning, SolverSettings
 from .integrators import CONTACT_CAPABLE
 from .integrators import RECORDS as INTEGRATOR_RECORDS
 from .model import Ground, Material, Model, Spring
+from .parameters import Parameters
 from .pipeline import Stage, StageTimer, StepContext
 from .scene import (
     BACKENDS,
@@ -37,6 +38,7 @@ __all__ = [
     "INTEGRATOR_RECORDS",
     "Material",
     "Model",
+    "Parameters",
     "Polyhedron",
     "Scene",
     "SolverSettings",

@@ -24,6 +24,9 @@ from .compiled.backend import BACKENDS, driver_for
 from .contacts import SolverSettings
 from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
+from .parameters import Parameters
+from .parameters import build as build_parameters
+from .parameters import row_data as parameter_row_data
 from .pipeline import StageTimer, StepContext, run
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import ORIENTATION_TOLERANCE, State
@@ -119,6 +122,17 @@ class Scene:
             if not 0 <= sp.body < len(bodies):
                 raise ValueError(f"springs: body index {sp.body} out of range for {len(bodies)}")
         self.backend = _backend(backend)
+        # What ``rebuilt`` passes on (a parameter row's scene: other bodies, another ground).
+        self._spec = dict(
+            dt=dt,
+            integrator=integrator,
+            gravity=gravity,
+            springs=springs,
+            linear_damping=linear_damping,
+            angular_damping=angular_damping,
+            contacts=contacts,
+            contact_solver=contact_solver,
+        )
         self.model = Model(
             bodies, gravity, ground, springs, linear_damping, angular_damping, contacts
         )
@@ -166,6 +180,26 @@ class Scene:
     @report.setter
     def report(self, value: dict) -> None:
         self._report = value
+
+    def parameters(self, mass=None, inertia=None, friction=None, restitution=None) -> Parameters:
+        """Per-element model parameters for :meth:`step` (:mod:`~rigid_env.sim.parameters`):
+        ``mass`` (R, n), ``inertia`` (R, n, 3, 3) in body axes, the ground's ``friction`` and
+        ``restitution`` (R,); each given array has the same R rows, the others take the
+        scene's values. Row e serves batch element e (or one row every element). Checked as
+        :class:`Body` and :class:`Ground` check theirs: a ``ValueError`` names the array and
+        the row. Only a compiled scene takes them (``step`` says why not otherwise)."""
+        return build_parameters(
+            self,
+            {"mass": mass, "inertia": inertia, "friction": friction, "restitution": restitution},
+        )
+
+    def rebuilt(self, bodies, ground) -> Scene:
+        """This scene with other bodies and ground (same shapes, same composition), on numpy:
+        its kernels' data are a parameter row's (``parameters.row_data``)."""
+        return Scene(bodies, ground=ground, backend="numpy", **self._spec)
+
+    def row_data(self, bodies, ground) -> tuple:
+        return parameter_row_data(self, bodies, ground)
 
     @property
     def stages(self) -> tuple[str, ...]:
@@ -247,6 +281,7 @@ class Scene:
         *,
         body_torque=None,
         steps: int = 1,
+        parameters: Parameters | None = None,
     ) -> State:
         """Advance every batch element by ``steps`` physics steps of ``dt`` under the same loads.
 
@@ -279,7 +314,12 @@ class Scene:
         if not (steps == 1 and type(steps) is int):
             steps = _steps(steps)
         if self._driver is not None:
-            return self._compiled_step(state, torque, force, body_torque, steps, start)
+            return self._compiled_step(state, torque, force, body_torque, steps, start, parameters)
+        if parameters is not None:
+            raise ValueError(
+                "parameters: per-element parameters need the compiled step, and this scene "
+                f"steps with numpy (backend {self.backend!r}; stages {self.stages})"
+            )
         arrays = self._arrays(state)
         shape = arrays[0].shape
         torque = _load(torque, "torque", shape)
@@ -317,7 +357,9 @@ class Scene:
             timer.steps += steps
         return new
 
-    def _compiled_step(self, state, torque, force, body_torque, steps, start) -> State:
+    def _compiled_step(
+        self, state, torque, force, body_torque, steps, start, parameters=None
+    ) -> State:
         """The ``steps`` steps in one kernel call over the flattened batch (``compiled.driver``).
 
         The common case (float64 ndarrays of the right shapes) is checked here in a few
@@ -336,11 +378,12 @@ class Scene:
             force = _load(force, "force", shape, check_finite=False)
         if body_torque is not None:
             body_torque = _load(body_torque, "body_torque", shape, check_finite=False)
+        data = None if parameters is None else self._parameter_data(parameters, shape)
         if timer is not None:
             mid = time.perf_counter()
             timer.add("validate", mid - start)
         x, q, v, w, report, (bad_orientation, diverged, capped), counts = drv(
-            *arrays, force, torque, body_torque, steps
+            *arrays, force, torque, body_torque, steps, data
         )
         counts = None if steps == 1 else counts
         if timer is not None:
@@ -382,6 +425,18 @@ class Scene:
             timer.step_seconds += time.perf_counter() - start
             timer.steps += steps
         return new
+
+    def _parameter_data(self, parameters, shape) -> tuple:
+        """The driver's data of ``parameters`` for a state of this shape."""
+        if not isinstance(parameters, Parameters) or parameters.scene is not self:
+            raise ValueError("parameters must come from this scene's parameters()")
+        size = int(np.prod(shape[:-2], dtype=np.int64))
+        if parameters.rows not in (1, size):
+            raise ValueError(
+                f"parameters has {parameters.rows} rows; a batch of {size} elements takes "
+                f"{size} rows (one per element) or 1"
+            )
+        return parameters.data
 
     def _plain_arrays(self, state):
         """The state's arrays if they are float64 ndarrays of consistent shapes, else None."""

@@ -79,3 +79,37 @@ def test_main_passes_the_backend_to_both_envs(monkeypatch):
     assert env_speed.main([*argv, "--backend", "numpy"]) == 0
     assert env_speed.main(argv) == 0
     assert made == [("single", "numpy"), ("vector", "numpy"), ("single", None), ("vector", None)]
+
+
+def test_randomise_gives_both_envs_the_randomised_physics(monkeypatch, capsys):
+    made = []
+    real_make, real_make_vec = gym.make, gym.make_vec
+
+    def make(env_id, **kwargs):
+        made.append((env_id, "single", kwargs))
+        return real_make(env_id, **kwargs)
+
+    def make_vec(env_id, **kwargs):
+        made.append((env_id, "vector", kwargs))
+        return real_make_vec(env_id, **kwargs)
+
+    monkeypatch.setattr(env_speed.gym, "make", make)
+    monkeypatch.setattr(env_speed.gym, "make_vec", make_vec)
+    argv = ["--seconds", "0.02", "--num-envs", "2", "--peer", "none", "--randomise"]
+    assert env_speed.main(argv) == 0
+    assert capsys.readouterr().out.count("(randomised physics)") == 2
+    assert [(e, mode) for e, mode, _ in made] == [
+        (env_id, mode) for env_id in env_speed.RIGID_ENVS for mode in ("single", "vector")
+    ]
+    for env_id, _, kwargs in made:
+        assert {k: kwargs[k] for k in env_speed.RANDOMISED[env_id]} == env_speed.RANDOMISED[env_id]
+    for env_id in env_speed.RIGID_ENVS:  # and such an env steps with per-env parameters
+        vec = real_make_vec(
+            env_id,
+            num_envs=2,
+            vectorization_mode="vector_entry_point",
+            **env_speed.RANDOMISED[env_id],
+        )
+        vec.reset(seed=0)
+        task = vec.unwrapped.task
+        assert task.parameters is not None and task.parameters.rows == 2

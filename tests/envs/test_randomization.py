@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -224,17 +226,18 @@ def test_physical_parameters_are_drawn_per_episode_in_their_ranges_and_seeded(en
         values = info[INFO_KEYS[name]]
         assert values.min() >= low and values.max() <= high
         assert np.ptp(values) > 0.5 * (high - low), name
-    # Each sub-env steps its own model: its body and ground are the drawn ones.
+    # Each sub-env steps its own row of the scene's parameters: its body and ground are the
+    # drawn ones (that a row steps as a scene of its own is tests/sim/test_parameters.py's).
+    params = env.unwrapped.task.parameters
     task = env.unwrapped.task
     for i in (0, 17, 63):
-        (body,) = task.scenes[i].model.bodies
-        assert body.mass == pytest.approx(task.body.mass * info["mass_scale"][i], rel=1e-15)
+        mass = params.mass[i, 0]
+        assert mass == pytest.approx(task.body.mass * info["mass_scale"][i], rel=1e-15)
         scale = info["mass_scale"][i] * info["inertia_scale"][i]
-        np.testing.assert_allclose(body.inertia, scale * task.inertia, rtol=1e-15)
+        np.testing.assert_allclose(params.inertia[i, 0], scale * task.inertia, rtol=1e-15)
         if env_id == LANDING:
-            ground = task.scenes[i].model.ground
-            assert ground.friction == info["friction"][i]
-            assert ground.restitution == info["restitution"][i]
+            assert params.friction[i] == info["friction"][i]
+            assert params.restitution[i] == info["restitution"][i]
     again = make_vec(env_id, 64, **kwargs)
     _, same = again.reset(seed=0)
     _, other = env.reset(seed=1)
@@ -257,6 +260,45 @@ def test_with_physical_randomisation_sub_env_i_equals_a_single_env_seeded_s_plus
         obs, *_ = env.step(action)
         for i, single in enumerate(singles):
             assert np.array_equal(single.step(action[i])[0], obs[i])
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_a_partial_reset_redraws_only_its_envs_physics(env_id):
+    kwargs = dict(PHYSICAL[env_id], **FAST[env_id])
+    env = make_vec(env_id, 4, **kwargs)
+    env.reset(seed=2)
+    params = env.unwrapped.task.parameters
+    before = params.values()
+    env.reset(options={"reset_mask": np.array([False, True, False, False])})
+    after = params.values()
+    for name in before:
+        assert np.array_equal(np.delete(after[name], 1, 0), np.delete(before[name], 1, 0))
+        if name != "inertia" or "inertia_scale_range" in kwargs:
+            assert not np.array_equal(after[name][1], before[name][1]), name
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_randomised_physics_survives_pickling(env_id):
+    kwargs = dict(PHYSICAL[env_id], **FAST[env_id])
+    env = make_vec(env_id, 3, **kwargs)
+    env.reset(seed=3)
+    task = env.unwrapped.task
+    twin = pickle.loads(pickle.dumps(task))
+    for name, values in task.parameters.values().items():
+        assert np.array_equal(twin.parameters.values()[name], values)
+    action = np.full((3, 3), 0.5)
+    task.step(action)
+    twin.step(action)
+    assert all(
+        np.array_equal(a, b) for a, b in zip(task.state.arrays(), twin.state.arrays(), strict=True)
+    )
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_randomised_physics_on_the_numpy_step_is_refused(env_id):
+    with pytest.raises(ValueError, match="mass_scale_range.*compiled step"):
+        make_vec(env_id, 2, backend="numpy", **PHYSICAL[env_id])
+    make_vec(env_id, 2, backend="numpy")  # without randomised physics it steps
 
 
 def test_the_drawn_mass_and_inertia_are_the_physics():

@@ -20,6 +20,7 @@ NUMPY_ONLY = {
     "test_disable_jit.py": "runs the compiled kernels as Python itself (backend set explicitly)",
     "test_pair_detection.py": "tests the pair detection kernels, which both backends call",
     "test_min_norm.py": "tests one compiled kernel against numpy's pinv, not a step",
+    "test_parameters.py": "per-element parameters are the compiled step's (backend= explicit)",
 }
 
 

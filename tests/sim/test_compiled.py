@@ -235,7 +235,7 @@ def test_composition_follows_the_stage_tuple():
     b = sim.Scene(lopsided_body(), 0.02, integrator="euler", backend="compiled", **ALL_FORCES)
     assert a._driver.module is b._driver.module
     body = a._driver.source.split("def step(")[1]
-    calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, data[" in line]
+    calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, d[" in line]
     assert calls == ["euler_velocity", "euler_position"]
     forces = a._driver.source.split("def wrench")[1].split("return")[0]
     assert [f"force_{i}(" in forces for i in range(3)] == [True, True, True]
@@ -288,11 +288,11 @@ def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
     calls = [
         line.strip()
         for line in drv.source.split("def step(")[1].splitlines()
-        if "(e, st, data[" in line or "e, ref, data[" in line
+        if "(e, st, d[" in line or "e, ref, d[" in line
     ]
     assert len(calls) == len(drv.kernels)
     for kernel, call in zip(drv.kernels, calls, strict=True):
-        j = int(call.split("data[")[1].split("]")[0])
+        j = int(call.split(" d[")[1].split("]")[0])
         own = (kernel.data, tuple(f.data for f in drv.forces)) if kernel.template else kernel.data
         assert _same(drv.data[j], own)
 

@@ -61,7 +61,10 @@ that turns the columns into the ``scene.report`` entries its numpy twin writes.
 **An element kernel** is ``kernel(e, st, d) -> None``. It reads and writes only row ``e`` of
 the ``st`` arrays (so a batched step equals the same element stepped alone, bit for bit, and
 elements may run on threads), and ``d``, the stage's own constants: a tuple of float64/int64
-arrays built once from the scene (never sized by the batch; scalars as 1-element arrays). The
+arrays built once from the scene (never sized by the batch; scalars as 1-element arrays). With
+per-element parameters (``sim.parameters``) the driver holds one such tuple per row, built by
+the same factories from a scene with that row's bodies and ground, stacked on a leading axis,
+and hands element e row e (``driver.row``): a kernel never sees the batch in its data. The
 body count n is ``st[0].shape[1]``.
 
 **A force kernel** (body level, pure) is ``term(b, x, q, v, w, fd) -> (f, t)``: body index b,

@@ -12,6 +12,8 @@ an element that is not, as numpy's stages skip it.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
@@ -41,9 +43,19 @@ INT_BLOCKS = (O_OWNER, O_SHAPED)
 I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -4, -3, -2, -1
 
 
+_BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def contact_data(scene) -> tuple | None:
     """The data tuple of the contact kernels, or None when the scene has body–body contacts
-    (those step with numpy) or no ground contacts."""
+    (those step with numpy) or no ground contacts. Built once per scene: every contact
+    kernel's factory asks (and each parameter row's scene, ``sim.parameters``)."""
+    if scene not in _BUILT:
+        _BUILT[scene] = _contact_data(scene)
+    return _BUILT[scene]
+
+
+def _contact_data(scene) -> tuple | None:
     stages = {type(s): s for s in scene.pipeline}
     if CollidePairs in stages or AssembleContacts not in stages or Restitute not in stages:
         return None
