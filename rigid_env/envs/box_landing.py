@@ -590,7 +590,7 @@ class BoxLandingTask(HoldTask):
     def _advance(self, torque: np.ndarray) -> None:
         """Step the physics for one action (``frame_skip`` steps, the torque fixed in the body
         frame, one simulator call) and keep which envs' contacts carried an impulse during
-        the period (``ContactReport.touched``, merged over its physics steps: a bounce that
+        the period (the returned state's ``ContactReport.touched``, merged over its physics steps: a bounce that
         begins and ends within one physics step counts) for :meth:`_step_events`. A period
         with a capped contact solve is counted per env (``contact_capped``) and warned once
         (:mod:`~rigid_env.envs.contact_caps`)."""
@@ -601,7 +601,7 @@ class BoxLandingTask(HoldTask):
             steps=self.frame_skip,
             parameters=self.parameters,
         )
-        report = self.scene.report.get("contacts")
+        report = self.state.report.get("contacts")
         touched = None if report is None else report.touched
         capped = contact_caps.capped_mask(report)
         self._touched = self._no_contact_report if touched is None else touched

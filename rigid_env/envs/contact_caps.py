@@ -35,7 +35,7 @@ MESSAGE = (
 
 def step_quietly(scene: sim.Scene, state: sim.State, **step: Any) -> sim.State:
     """``scene.step(state, **step)`` without its ``ContactSolverWarning`` (the env counts caps
-    from ``scene.report`` instead)."""
+    from the returned state's ``report`` instead)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sim.ContactSolverWarning)
         return scene.step(state, **step)

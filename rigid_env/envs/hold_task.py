@@ -40,7 +40,7 @@ from .validation import (
 )
 
 OBS_LIMIT = 5.0  # scaled velocities in an observation are clipped to ± this
-STATE_FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # State.arrays()
+STATE_FIELDS = sim.state.FIELDS  # State.arrays()
 
 # Bounds of the arguments (documented in the envs' argument tables). Past them an episode's
 # numbers stop meaning anything (spins of 1e300 rad/s give rewards of -inf), so they are refused.
@@ -481,7 +481,8 @@ class HoldTask(BatchedTask):
                 arrays[name][index, 0] = unit_quaternions(value) if name == "orientation" else value
                 continue
             arrays[name][index, 0] = self._check_value(name, value, k, name)
-        return sim.State(**arrays)
+        # The other envs keep the contact impulses their next step warm-starts from.
+        return self.state.edited(index, **arrays)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Apply validated ``action`` (N, 3), which the task keeps as ``prev_action`` (the

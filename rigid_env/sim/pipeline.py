@@ -49,9 +49,10 @@ The context (:class:`StepContext`), all arrays batch-first, ``(*batch, n_bodies,
     a dict for values one stage computes for a later stage of the same owner (e.g. the
     start-of-step rotation matrix the integrator's two parts share); keys are the owner's.
 ``warm``
-    what a stage hands to the same stage of the next step of one ``Scene.step`` call (the
-    contact solve's impulses when ``SolverSettings.warm_start``); ``None`` in a call's first
-    step, so a call's first step is the same whatever came before.
+    what a stage hands to the same stage of the next step (the contact solve's impulses when
+    ``SolverSettings.warm_start``): in a call's first step what the state passed in carries
+    (``State.contact_impulses``, else ``None``), then the previous step's; the state a call
+    returns carries its last, so k calls are bit for bit one call of k steps.
 
 Order of a step
 ---------------
@@ -146,8 +147,8 @@ class StepContext:
         # Values one stage computes for a later one of the same integrator (e.g. the rotation
         # matrix at the start of the step); private to the stages that write them.
         self.cache: dict[str, Any] = {}
-        # What the previous step of the same ``Scene.step`` call left for this one (the contact
-        # solve's impulses, ``SolverSettings.warm_start``); None in a call's first step.
+        # What the previous step left for this one (the contact solve's impulses with
+        # ``SolverSettings.warm_start``: from the state passed in, in a call's first step).
         self.warm: Any = None
 
     def add_wrench(self, force: np.ndarray | None, torque: np.ndarray | None) -> None:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -14,6 +16,7 @@ BatchIndex = int | slice | np.ndarray | tuple[int | slice | np.ndarray, ...]
 # A state's quaternions must have |q| within this of 1 (a step renormalises its copy); a
 # quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
 ORIENTATION_TOLERANCE = 1e-6
+FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # ``arrays()``
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +38,20 @@ class State:
     orientation: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
+
+    @property
+    def report(self) -> Mapping[str, Any]:
+        """What the step that returned this state reported (``Scene.step``; with contacts,
+        ``report["contacts"]`` is a :class:`~rigid_env.sim.contacts.ContactReport` over the
+        batch): the step's own, whatever other steps of the same scene ran since or run on
+        other threads. Empty for a state no step returned (built, indexed or copied)."""
+        report = self.__dict__.get("_report")
+        if report is None:
+            return {}
+        if isinstance(report, tuple):  # a compiled step's columns: built on the first read
+            build, *columns = report
+            report = self.__dict__["_report"] = build(*columns)
+        return report
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -59,6 +76,46 @@ class State:
         arm = quat_rotate(self.orientation, np.asarray(local_point, float))
         return self.linear_velocity + cross(self.angular_velocity, arm)
 
+    @property
+    def contact_impulses(self) -> np.ndarray | None:
+        """With ``SolverSettings(warm_start=True)``: the impulses (normal, t₁, t₂) per contact
+        slot, ``(*batch_shape, C, 3)``, the last step's contact solve ended with where it
+        converged (zeros elsewhere), from which the next step's solve starts; None for a state
+        that carries none (cold start). ``state[index]`` keeps its elements' impulses."""
+        carried = self.__dict__.get("_warm")  # (*batch, C, 4): λ, then slot 0's flag
+        if carried is None:
+            return None
+        return np.where(carried[..., :1, 3:] != 0.0, carried[..., :3], 0.0)
+
+    def edited(self, reset: BatchIndex, **arrays: np.ndarray) -> State:
+        """This state with some of its arrays replaced (``position=`` … ``angular_velocity=``,
+        the same shapes), for a reset of the batch elements ``reset``: the contact impulses
+        it carries go along (``contact_impulses``), but the elements ``reset``, whose state
+        was edited, start their next contact solve cold."""
+        fields = dict(zip(FIELDS, self.arrays(), strict=True))
+        for name, value in arrays.items():
+            if name not in fields:
+                raise ValueError(f"unknown state field {name!r}; expected one of {FIELDS}")
+            if np.shape(value) != np.shape(fields[name]):
+                raise ValueError(
+                    f"{name} must keep the shape {np.shape(fields[name])}, got {np.shape(value)}"
+                )
+            fields[name] = value
+        new = State(**fields)
+        carried = self.__dict__.get("_warm")
+        if carried is not None:
+            carried = np.array(carried)
+            flags = carried[..., 0, 3]  # (*batch,): slot 0's converged flag, a view
+            flags[reset] = 0.0
+            new.__dict__["_warm"] = carried
+        return new
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its report (a compiled step's refers to the scene's driver)."""
+        fields = dict(self.__dict__)
+        fields.pop("_report", None)
+        return fields
+
     def copy(self) -> State:
         return State(*(np.array(a) for a in self.arrays()))
 
@@ -70,4 +127,8 @@ class State:
         if not isinstance(index, tuple):
             index = (index,)
         full = (*index, Ellipsis, slice(None), slice(None))
-        return State(*(a[full] for a in self.arrays()))
+        part = State(*(a[full] for a in self.arrays()))
+        carried = self.__dict__.get("_warm")
+        if carried is not None:  # (the arrays' layout: batch, then slots and 4)
+            part.__dict__["_warm"] = carried[full]
+        return part

@@ -468,10 +468,11 @@ def test_solver_settings_are_validated_and_a_cap_is_reported():
 
 def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(monkeypatch):
     # A box stuck on an incline needs the active-set start every step when cold (the particle
-    # start has no friction). Warm, only the call's first step does: the later ones start
-    # from the previous step's impulses, which are the answer (the box is at rest), and the
-    # report counts the element as warm-started (the most of any one step: 1). The result is
-    # rest either way (the static-friction test above), within the same tolerance.
+    # start has no friction). Warm, only the first step from a state without impulses does:
+    # the later ones start from the previous step's impulses, which are the answer (the box
+    # is at rest), and the report counts the element as warm-started (the most of any one
+    # step: 1). The result is rest either way (the static-friction test above), within the
+    # same tolerance.
     from rigid_env.sim.contacts import solve
 
     calls = []
@@ -498,8 +499,10 @@ def test_the_warm_start_starts_a_calls_later_steps_from_the_previous_impulses(mo
         assert (report.engaged, report.warm_started, report.capped) == (1, int(warm), 0)
         if scene.backend == "numpy":
             assert len(calls) == (1 if warm else CHUNK)
-        scene.step(result)  # a new call's first step starts cold, whatever came before
-        assert scene.report["contacts"].warm_started == 0
+        # The next call's first step starts from the impulses the state carries (warm); a
+        # state built from the arrays alone carries none and starts cold.
+        assert scene.step(result).report["contacts"].warm_started == int(warm)
+        assert scene.step(sim.State(*result.arrays())).report["contacts"].warm_started == 0
         for field in ("linear_velocity", "angular_velocity"):
             np.testing.assert_allclose(getattr(result, field), 0.0, rtol=0, atol=1e-9)
 

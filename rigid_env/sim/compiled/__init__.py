@@ -105,9 +105,11 @@ once: ``driver.share``), then ``steps.finite``,
 next start, zeroes the contact slots and folds the report row into ``total``, so a report
 column over k steps is its maximum over them: write columns for which that is the right
 summary, as flags, counts per step and largest values are); ``step(x0, q0, v0, w0, x, q, v, w,
-force, torque, body, report, counts, data, slots, steps, addresses)`` allocates the scratch
+force, torque, body, report, counts, data, slots, steps[, addresses][, warm_in, warm_out])``
+(``addresses`` where a kernel is called by it, the warm start's two arrays where the solve
+warm-starts: the state carries it between calls) allocates the scratch
 (displacement, contact slots, the start copies of several steps), builds ``st`` and loops over
-the batch, counting the
+the batch (element e with row e of ``data`` when it has a row per element), counting the
 elements with a bad quaternion, a non-finite result and a capped solve (the scene builds its
 report dict from the columns when read, at once when a solve was capped). ``steps.begin``,
 ``finite``, ``carry``, the integrator stage templates and the helpers a template module lists

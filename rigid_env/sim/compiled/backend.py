@@ -83,4 +83,4 @@ def driver_for(scene, backend: str):
         )
     from .driver import Driver
 
-    return Driver(*found, threads=backend == "compiled-threads")
+    return Driver(*found, threads=backend == "compiled-threads", warm=scene.warm_start)

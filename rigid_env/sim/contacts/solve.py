@@ -82,15 +82,16 @@ class SolverSettings:
         goes on from Newton's answer, up to ``max_iterations`` sweeps in all.
     newton_steps : Newton steps at most per solve, over all rounds (≥ 0; 0: Gauss–Seidel
         alone); a jump past a change of contact mode (``contacts.newton``) counts as one.
-    warm_start : False (default): every step's solve starts as above. True: in a
-        ``Scene.step(..., steps=k)`` call, a step whose previous step (of the same call)
-        converged with contacts engaged starts from that step's impulses instead (contact
-        slots are fixed per vertex, so slot i is the same contact) and probes them with one
-        sweep instead of the particle start; with the active-set start, a probe that fails
-        goes on as a cold solve, so no more solves reach the cap (with ``"particle"`` it goes
-        on from the probed impulses). The first step of a call starts cold. The answer meets
-        the same tolerance; it is not bit for bit the answer of k separate calls (where the
-        friction problem has several solutions, not even the same solution). On
+    warm_start : False (default): every step's solve starts as above. True: a step whose
+        previous step converged with contacts engaged starts from that step's impulses
+        instead (contact slots are fixed per vertex, so slot i is the same contact) and probes
+        them with one sweep instead of the particle start; with the active-set start, a probe
+        that fails goes on as a cold solve, so no more solves reach the cap (with
+        ``"particle"`` it goes on from the probed impulses). The state a step returns carries
+        the impulses (``State.contact_impulses``), so the next call starts warm too and k
+        calls are bit for bit one call of k steps; a state that carries none (built by hand)
+        starts cold. The answer meets the same tolerance as a cold start, not its bits (where
+        the friction problem has several solutions, not even the same solution). On
         BoxLanding's rollout states (8 steps per call) it makes the physics ~1.4× cheaper:
         the previous step's impulses are mostly already the answer.
     """

@@ -56,7 +56,7 @@ class ContactReport:
     impact events of any element; ``capped``: elements whose solve stopped at
     ``max_iterations`` or ``max_impacts`` instead of converging (0 in a converged step);
     ``warm_started``: elements whose solve started from the previous step's impulses
-    (``SolverSettings.warm_start``; 0 in a call's first step);
+    (``SolverSettings.warm_start``, which the state carries: ``State.contact_impulses``);
     ``tolerance``: the relative tolerance the converged elements met; ``unpaid_energy``: the
     largest energy excess (J) the energy guard could not take out of the kinetic energy (0
     in every step measured so far; see ``energy``); ``touched``: per batch element (flattened,
