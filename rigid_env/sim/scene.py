@@ -32,7 +32,7 @@ from .parameters import row_data as parameter_row_data
 from .pipeline import StageTimer, StepContext, run
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import FIELDS as STATE_FIELDS
-from .state import ORIENTATION_TOLERANCE, State
+from .state import ORIENTATION_TOLERANCE, ZERO_TIME, State
 from .validation import positive_scalar
 
 INTEGRATORS: tuple[str, ...] = tuple(RECORDS)
@@ -51,6 +51,14 @@ def _carry(new: State, shape, warm: np.ndarray) -> None:
     """Give the state a step returns the warm start of its next step, (N, C, 4) as the compiled
     step writes it (``Driver.__call__``), batch-shaped (``State.contact_impulses``)."""
     new.__dict__["_warm"] = warm if len(shape) == 3 else warm.reshape(*shape[:-2], *warm.shape[1:])
+
+
+def _later(state: State, dt: float, steps: int) -> tuple:
+    """The time of the state ``steps`` steps of ``dt`` after ``state`` (``State.time``)."""
+    origin, step, count, offset = state.__dict__.get("_time", ZERO_TIME)
+    if step == dt:
+        return (origin, dt, count + steps, offset)
+    return (state.time if count else origin, dt, steps, 0)  # (a new Δt: a new origin)
 
 
 def shape_size(shape) -> int:
@@ -366,6 +374,7 @@ class Scene:
                 start = clock()
                 timer.add("check", start - mid)
         new.__dict__["_report"] = reports[0] if steps == 1 else merge_reports(reports)
+        new.__dict__["_time"] = _later(state, self.dt, steps)
         if self.warm_start:
             _carry(new, shape, self._slots_of(warm, shape))
         self._last = new
@@ -425,8 +434,10 @@ class Scene:
             self._diagnose(arrays)
         if capped:  # the report now: it warns (ContactSolverWarning) from this step
             built: Any = drv.report(report, counts)
-        else:  # the report's columns: ``State.report`` builds it when read
+        elif drv.slots:  # the report's columns: ``State.report`` builds it when read
             built = (drv.report, report, counts)
+        else:  # (no stage reports: an empty report, as ``State.report`` reads None)
+            built = None
         if len(shape) != 3:
             qshape = shape[:-1] + (4,)
             x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)
@@ -440,6 +451,11 @@ class Scene:
         fields["linear_velocity"] = v
         fields["angular_velocity"] = w
         fields["_report"] = built
+        clock = state.__dict__.get("_time")  # (``_later``, written out: a free body's step)
+        if clock is not None and clock[1] == self.dt:
+            fields["_time"] = (clock[0], clock[1], clock[2] + steps, clock[3])
+        else:
+            fields["_time"] = _later(state, self.dt, steps)
         if warm is not None:  # what the last step's solve ended with (``_warm_slots``)
             _carry(new, shape, warm[1])
         self._last = new

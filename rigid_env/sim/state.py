@@ -17,6 +17,11 @@ BatchIndex = int | slice | np.ndarray | tuple[int | slice | np.ndarray, ...]
 # quaternion farther off (or zero, or overflowing) is rejected rather than silently rescaled.
 ORIENTATION_TOLERANCE = 1e-6
 FIELDS = ("position", "orientation", "linear_velocity", "angular_velocity")  # ``arrays()``
+# ``State.time`` is origin + (count − offset) Δt, held as (origin, Δt, count, offset): a step
+# of the same Δt only adds to the count (a tuple, no array work), so the time is the origin
+# plus a whole number of steps times Δt, not a sum of rounded increments; origin and offset
+# are per element (arrays) once some elements were reset (``edited``).
+ZERO_TIME = (0.0, 0.0, 0, 0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +82,14 @@ class State:
         return self.linear_velocity + cross(self.angular_velocity, arm)
 
     @property
+    def time(self) -> np.ndarray:
+        """Seconds since the state's origin, per batch element, ``batch_shape``: each step adds
+        its Δt (exactly: the time is the origin plus a whole number of steps times Δt); a
+        state built by hand starts at 0, and so do the elements :meth:`edited` resets."""
+        origin, step, count, offset = self.__dict__.get("_time", ZERO_TIME)
+        return np.broadcast_to(origin + (count - offset) * step, self.batch_shape).astype(float)
+
+    @property
     def contact_impulses(self) -> np.ndarray | None:
         """With ``SolverSettings(warm_start=True)``: the impulses (normal, t₁, t₂) per contact
         slot, ``(*batch_shape, C, 3)``, the last step's contact solve ended with where it
@@ -102,6 +115,12 @@ class State:
                 )
             fields[name] = value
         new = State(**fields)
+        origin, step, count, offset = self.__dict__.get("_time", ZERO_TIME)
+        if count:  # the reset elements start their clock again, at 0
+            origin = np.array(np.broadcast_to(origin, self.batch_shape), dtype=float)
+            offset = np.array(np.broadcast_to(offset, self.batch_shape), dtype=np.int64)
+            origin[reset], offset[reset] = 0.0, count
+            new.__dict__["_time"] = (origin, step, count, offset)
         carried = self.__dict__.get("_warm")
         if carried is not None:
             carried = np.array(carried)
@@ -128,6 +147,12 @@ class State:
             index = (index,)
         full = (*index, Ellipsis, slice(None), slice(None))
         part = State(*(a[full] for a in self.arrays()))
+        origin, step, count, offset = self.__dict__.get("_time", ZERO_TIME)
+        if count:
+            batch = (*index, Ellipsis)
+            origin = np.broadcast_to(origin, self.batch_shape)[batch]
+            offset = np.broadcast_to(offset, self.batch_shape)[batch]
+            part.__dict__["_time"] = (origin, step, count, offset)
         carried = self.__dict__.get("_warm")
         if carried is not None:  # (the arrays' layout: batch, then slots and 4)
             part.__dict__["_warm"] = carried[full]
