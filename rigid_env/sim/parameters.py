@@ -166,6 +166,8 @@ def _checked(scene, values: dict, rows: int, full: dict) -> dict[str, np.ndarray
             arr = np.array(value, dtype=float)
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be a numeric array, got {value!r}") from None
+        if n == 1 and name in ("mass", "inertia") and arr.shape == (rows, *shapes[name][1:]):
+            arr = arr[:, None]  # a one-body scene's (R,) masses, (R, 3, 3) inertias
         if arr.shape != (rows, *shapes[name]):
             raise ValueError(
                 f"{name} must have shape {(rows, *shapes[name])} (rows, ...), got {arr.shape}"

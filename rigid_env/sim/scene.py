@@ -203,8 +203,9 @@ class Scene:
 
     def parameters(self, mass=None, inertia=None, friction=None, restitution=None) -> Parameters:
         """Per-element model parameters for :meth:`step` (:mod:`~rigid_env.sim.parameters`):
-        ``mass`` (R, n), ``inertia`` (R, n, 3, 3) in body axes, the ground's ``friction`` and
-        ``restitution`` (R,); each given array has the same R rows, the others take the
+        ``mass`` (R, n), ``inertia`` (R, n, 3, 3) in body axes (a one-body scene also takes
+        (R,) and (R, 3, 3)), the ground's ``friction`` and ``restitution`` (R,); each given
+        array has the same R rows, the others take the
         scene's values. Row e serves batch element e (or one row every element). Checked as
         :class:`Body` and :class:`Ground` check theirs: a ``ValueError`` names the array and
         the row. Only a compiled scene takes them (``step`` says why not otherwise)."""

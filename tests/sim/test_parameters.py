@@ -179,7 +179,7 @@ def test_update_sets_rows_as_a_fresh_build_would():
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        (dict(mass=np.ones(3)), "mass must have shape"),
+        (dict(mass=np.ones((3, 1, 1))), "mass must have shape"),
         (dict(mass=np.ones((3, 2))), "mass must have shape"),
         (dict(inertia=np.ones((2, 1, 3))), "inertia must have shape"),
         (dict(mass=np.ones((3, 1)), friction=np.ones(2)), "row counts differ"),
@@ -240,3 +240,15 @@ def _leaves(data):
     if isinstance(data, tuple):
         return [leaf for d in data for leaf in _leaves(d)]
     return [data]
+
+
+def test_a_one_body_scene_takes_masses_and_inertias_without_the_body_axis():
+    scene = landing()
+    rng = np.random.default_rng(7)
+    values = drawn(rng, 3)
+    flat = scene.parameters(mass=values["mass"][:, 0], inertia=values["inertia"][:, 0])
+    full = scene.parameters(mass=values["mass"], inertia=values["inertia"])
+    assert np.array_equal(flat.mass, full.mass) and np.array_equal(flat.inertia, full.inertia)
+    two = sim.Scene([BOX, BOX], 0.01, backend="compiled")  # two bodies: the axis is needed
+    with pytest.raises(ValueError, match="mass must have shape"):
+        two.parameters(mass=np.ones(3))
