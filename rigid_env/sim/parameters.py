@@ -48,7 +48,7 @@ class Parameters:
         self._values = values
         from .compiled.driver import stack
 
-        rows = [scene.row_data(*self._row(values, p)) for p in range(self.rows)]
+        rows = [row_data(scene, *self._row(values, p)) for p in range(self.rows)]
         self.data = stack(rows)
         for arr in values.values():
             arr.setflags(write=False)
@@ -91,7 +91,7 @@ class Parameters:
         given = _checked(self.scene, values, len(rows), new)
         for name, arr in given.items():
             new[name][rows] = arr
-        built = [self.scene.row_data(*self._row(new, int(p))) for p in rows]
+        built = [row_data(self.scene, *self._row(new, int(p))) for p in rows]
         for arr in new.values():
             arr.setflags(write=False)
         self._values = new
@@ -120,9 +120,6 @@ class Parameters:
 def build(scene, values: dict[str, ArrayLike]) -> Parameters:
     """``Scene.parameters``: the given arrays (each with a leading axis of R rows), the
     scene's own values for the others."""
-    unknown = set(values) - set(FIELDS)
-    if unknown:
-        raise ValueError(f"unknown parameters {sorted(unknown)}; expected some of {FIELDS}")
     given = {k: v for k, v in values.items() if v is not None}
     for name, value in given.items():
         if not np.ndim(value):

@@ -28,7 +28,6 @@ from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
 from .parameters import Parameters
 from .parameters import build as build_parameters
-from .parameters import row_data as parameter_row_data
 from .pipeline import StageTimer, StepContext, run
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import FIELDS as STATE_FIELDS
@@ -62,8 +61,8 @@ def _later(state: State, dt: float, steps: int) -> tuple:
 
 
 def shape_size(shape) -> int:
-    """The flattened batch of a state shape (*batch, n, 3) (``math.prod``: ~0.1 µs, against
-    ~3 µs for ``np.prod`` of a tuple)."""
+    """The flattened batch of a state shape (*batch, n, 3): ``math.prod`` of the ints, not
+    ``np.prod``, which first makes an array of the tuple (a visible part of a batch-1 step)."""
     return math.prod(shape[:-2])
 
 
@@ -219,9 +218,6 @@ class Scene:
         its kernels' data are a parameter row's (``parameters.row_data``)."""
         return Scene(bodies, ground=ground, backend="numpy", **self._spec)
 
-    def row_data(self, bodies, ground) -> tuple:
-        return parameter_row_data(self, bodies, ground)
-
     @property
     def stages(self) -> tuple[str, ...]:
         """The names of :attr:`pipeline`'s stages, in order."""
@@ -321,8 +317,9 @@ class Scene:
         previous step's impulses, which the returned state carries into the next call
         (``State.contact_impulses``; a state that carries none starts cold). A step
         that diverges raises as a single call would, and the k steps' states are not returned.
-        The returned state's ``report`` is then the k steps' reports merged entry by entry into their maximum
-        (elementwise for arrays, OR for flags; see :func:`merge_reports`): an iteration count
+        The returned state's ``report`` is then the k steps' reports merged entry by entry
+        into their maximum (elementwise for arrays, OR for flags; see :func:`merge_reports`):
+        an iteration count
         is the most any step used, a count of capped solves is non-zero iff some step stopped
         at its cap. A :class:`StageTimer` counts k steps.
 
@@ -483,7 +480,8 @@ class Scene:
         return np.zeros((shape_size(shape), self._c, 4))
 
     def _slots_of(self, warm, shape) -> np.ndarray:
-        """The numpy step's warm start (λ (N, C, 3), converged (N,)) or None, as ``_carried``."""
+        """The numpy step's warm start (λ (N, C, 3), converged (N,)), or None for a cold one,
+        in the layout ``_carried`` reads (what the returned state carries)."""
         out = np.zeros((shape_size(shape), self._c, 4))
         if warm is not None:
             out[..., :3] = warm[0]
