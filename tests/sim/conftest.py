@@ -3,18 +3,17 @@
 The ``sim_backend`` fixture is autouse and parametrised per test as ``[numpy]`` and
 ``[compiled]``: it sets ``RIGID_ENV_BACKEND`` for the scenes a test builds (``numpy``, or
 ``auto``, which compiles every scene whose stages all have kernels and runs the rest on numpy).
-A scene that passes ``backend=`` itself keeps it. Modules whose scenes all have body–body
-contacts (no compiled kernels) run once, on numpy: a ``[compiled]`` run would repeat it; so do
-the modules that choose their backends themselves.
+A scene that passes ``backend=`` itself keeps it. The modules that choose their backends
+themselves, or test no step, run once.
 """
 
 import pytest
 
 BACKENDS = ("numpy", "compiled")
 NUMPY_ONLY = {
-    "test_box_box.py": "body–body contact scenes step with numpy on either backend",
     "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
     "test_compiled_contacts.py": "compares the backends itself (explicit backend= everywhere)",
+    "test_compiled_pairs.py": "compares the backends itself (explicit backend= everywhere)",
     "test_compiled_cache.py": "tests numba's cache, not a step",
     "test_compile_helper.py": "tests the compile helper, not a step",
     "test_disable_jit.py": "runs the compiled kernels as Python itself (backend set explicitly)",

@@ -288,14 +288,12 @@ def test_a_box_on_frictionless_ground_follows_its_path_in_space_under_the_same_l
     assert np.abs(in_space.position[..., :2]).max() > 0.1  # it went somewhere
 
 
-def test_a_box_resting_on_a_box_pushed_follows_its_path_in_space(sim_backend):
-    # Body–body contact (numpy on either backend: one run). The upper box on a lower box on
-    # frictionless ground, contacts frictionless too: pushed horizontally, the upper box
-    # follows its path in space, and the lower one stays where it is. With friction between
-    # them (μ = 0.5, no friction on the ground), a push on the lower box below what friction
-    # can pass on (a = F/(m₁ + m₂) ≤ μ g) carries both at a = F/(m₁ + m₂).
-    if sim_backend == "compiled":
-        pytest.skip("body–body contact scenes step with numpy on either backend")
+def test_a_box_resting_on_a_box_pushed_follows_its_path_in_space():
+    # Body–body contact. The upper box on a lower box on frictionless ground, contacts
+    # frictionless too: pushed horizontally, the upper box follows its path in space, and the
+    # lower one stays where it is. With friction between them (μ = 0.5, no friction on the
+    # ground), a push on the lower box below what friction can pass on (a = F/(m₁ + m₂) ≤ μ g)
+    # carries both at a = F/(m₁ + m₂).
     dt = 1 / 240
     half = FLAT
     boxes = [_box(half), _box(half)]

@@ -359,7 +359,8 @@ def test_the_compiled_step_carries_results_and_folds_report_rows():
         assert not np.array_equal(st[start][0], st[result][0])  # other rows untouched
     contact = st[layout.CONTACT]
     assert not contact[1, :, : layout.WARM].any() and contact[0].all()
-    assert contact[1, :, layout.WARM :].all()  # kept for the next step's warm start
+    assert contact[1, :, layout.WARM : layout.WARM_END].all()  # the next step's warm start
+    assert not contact[1, :, layout.WARM_END :].any()  # the body–body columns: zeroed
     assert not report[1].any() and total[1, layout.ITERATIONS] == 4.0
     report[1, layout.ITERATIONS] = 2.0  # the next step used fewer iterations, did not cap
     steps.fold(1, st, total)

@@ -13,7 +13,7 @@ import pytest
 
 from rigid_env import sim
 from rigid_env.sim.compiled import contact_newton as compiled_newton
-from rigid_env.sim.compiled.contact_gauss_seidel import WORK_PER_CONTACT
+from rigid_env.sim.compiled.contact_gauss_seidel import WORK_PER_CONTACT, velocity_scale
 from rigid_env.sim.compiled.contact_newton import converge as compiled_converge
 from rigid_env.sim.contacts import newton as newton_module
 from rigid_env.sim.contacts import solve as solve_module
@@ -87,6 +87,7 @@ def solve(backend, a, free, target, mu, extra, settings):
         extra[0],
         settings.max_iterations,
         settings.tolerance,
+        velocity_scale(free[0].ravel(), target[0]),
         settings.newton_after,
         settings.newton_steps,
         np.empty(WORK_PER_CONTACT * c),

@@ -27,6 +27,7 @@ KERNEL_MODULES = (
     "exact_kernels",
     "ground",
     "contact_assembly",
+    "contact_pairs",
     "contact_impacts",
     "contact_solve",
     "contact_energy",

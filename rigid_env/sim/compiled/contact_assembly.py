@@ -18,10 +18,27 @@ import numpy as np
 
 from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
 from . import bodies
+from ..contacts.assembly import FAR_GAP
 from .cache import njit
 from .forces import spring_table
 from .ground import ground_data
-from .layout import ARM, CONTACT, ENGAGED, GAP, JT, PATH_GAP, REPORT, T1, U1, Q, V, W
+from .layout import (
+    ARM,
+    ARM_B,
+    CONTACT,
+    ENGAGED,
+    GAP,
+    JT,
+    JT_B,
+    NORMAL,
+    PATH_GAP,
+    REPORT,
+    T1,
+    U1,
+    Q,
+    V,
+    W,
+)
 from .registry import Kernel, register
 from .rotation import cross, matmul, quat_to_matrix, rotate, rotate_inverse
 
@@ -36,20 +53,28 @@ F_HEAD = 5
 O_OWNER, O_SHAPED = 0, 1  # in ints
 O_MU, O_EPS, O_THRESHOLD, O_MASS, O_RIM, O_L, O_LINV, O_BODY, O_POINTS, O_FOOT = range(2, 12)
 O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
-N_BLOCKS = 13
-INT_BLOCKS = (O_OWNER, O_SHAPED)
-# The spring count, the warm start's flag and the Newton polish's settings sit at the end of the
-# integer array (after the index tables).
-I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -4, -3, -2, -1
+# Body–body contacts (``contact_pairs``): per contact its body b (−1: the ground), per pair its
+# bodies, per group of pairs of one kind (``GROUP_COLUMNS``), and the groups' shape tables.
+O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS = 13, 14, 15, 16  # in ints
+O_SHAPES = 17  # in floats
+N_BLOCKS = 18
+INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS)
+# A group's row: its kind (``contact_pairs.KINDS``), pairs, slots per pair, first pair, first
+# contact slot, and where its shape table starts in the ``O_SHAPES`` block.
+G_KIND, G_PAIRS, G_SLOTS, G_FIRST_PAIR, G_FIRST_SLOT, G_SHAPES, GROUP_WIDTH = range(7)
+# The pair groups' count, the spring count, the warm start's flag and the Newton polish's
+# settings sit at the end of the integer array (after the index tables).
+I_GROUPS, I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -5, -4, -3, -2, -1
 
 
 _BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def contact_data(scene) -> tuple | None:
-    """The data tuple of the contact kernels, or None when the scene has body–body contacts
-    (those step with numpy) or no ground contacts. Built once per scene: every contact
-    kernel's factory asks (and each parameter row's scene, ``sim.parameters``)."""
+    """The data tuple of the contact kernels, or None when the scene steps with numpy: no
+    ground contacts, or body–body contacts with restitution (their impacts, ``restitution``,
+    are numpy's only). Built once per scene: every contact kernel's factory asks (and each
+    parameter row's scene, ``sim.parameters``)."""
     if scene not in _BUILT:
         _BUILT[scene] = _contact_data(scene)
     return _BUILT[scene]
@@ -57,11 +82,11 @@ def contact_data(scene) -> tuple | None:
 
 def _contact_data(scene) -> tuple | None:
     stages = {type(s): s for s in scene.pipeline}
-    if CollidePairs in stages or AssembleContacts not in stages or Restitute not in stages:
+    if AssembleContacts not in stages or Restitute not in stages:
         return None
     lay = stages[AssembleContacts].layout
     settings = stages[Restitute].settings
-    if lay.pairs is not None or lay.n_ground == 0:
+    if lay.n_ground == 0 or (lay.pairs is not None and np.any(lay.eps > 0)):
         return None
     model = scene.model
     ground = ground_data(model.bodies)
@@ -85,7 +110,14 @@ def _contact_data(scene) -> tuple | None:
         v,
     ]
     springs = spring_table(model)  # the loads of the energy guard's W (``contacts.energy``)
-    tail = [len(springs), int(settings.warm_start), settings.newton_after, settings.newton_steps]
+    groups, pair_a, pair_b, shapes = pair_tables(lay)
+    tail = [
+        len(groups),
+        len(springs),
+        int(settings.warm_start),
+        settings.newton_after,
+        settings.newton_steps,
+    ]
     body = bodies.body_data(model)
     blocks = {
         O_OWNER: lay.a,
@@ -101,6 +133,11 @@ def _contact_data(scene) -> tuple | None:
         O_POINTS: points.reshape(-1),
         O_FOOT: foot,
         O_SPRINGS: springs.reshape(-1),
+        O_OWNER_B: lay.b,
+        O_PAIR_A: pair_a,
+        O_PAIR_B: pair_b,
+        O_GROUPS: groups.reshape(-1),
+        O_SHAPES: shapes,
     }
     starts = np.zeros(N_BLOCKS, dtype=np.int64)
     int_parts = [np.asarray(head, np.int64), starts]
@@ -113,6 +150,32 @@ def _contact_data(scene) -> tuple | None:
     floats = np.concatenate(float_parts).astype(float)
     # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
     return (ints, floats)
+
+
+def pair_tables(lay) -> tuple:
+    """The body–body blocks of ``contact_data``: the groups (Gp, ``GROUP_WIDTH``), each pair's
+    bodies a and b, and the groups' shape tables (``contact_pairs.shape_table``)."""
+    from .contact_pairs import KINDS, shape_table
+
+    groups, pair_a, pair_b, shapes = [], [], [], []
+    first_pair, first_slot, at = 0, lay.n_ground, 0
+    if lay.pairs is not None:
+        for (pa, pb, detect, slots), kind in zip(lay.pairs.groups, lay.pairs.kinds, strict=True):
+            table = shape_table(kind, detect.params)
+            groups.append([KINDS.index(kind), len(pa), slots, first_pair, first_slot, at])
+            pair_a.append(pa)
+            pair_b.append(pb)
+            shapes.append(table)
+            first_pair += len(pa)
+            first_slot += len(pa) * slots
+            at += len(table)
+    cat = np.concatenate
+    return (
+        np.array(groups, np.int64).reshape(-1, GROUP_WIDTH),
+        cat(pair_a).astype(np.int64) if pair_a else np.zeros(0, np.int64),
+        cat(pair_b).astype(np.int64) if pair_b else np.zeros(0, np.int64),
+        cat(shapes) if shapes else np.zeros(0),
+    )
 
 
 # ``reshape`` gives these views through a call into numba's C helper, ~35 ns per view per
@@ -156,14 +219,19 @@ def offsets(ints):
         ints[s + 10],
         ints[s + 11],
         ints[s + 12],
+        ints[s + 13],
+        ints[s + 14],
+        ints[s + 15],
+        ints[s + 16],
+        ints[s + 17],
     )
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def solver_views(ints, floats, o):
     """The views of ``contact_data``'s arrays that the solve takes (``o``: ``offsets``):
-    (μ, owner, shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9)). ``solve`` builds only these (each
-    view costs a reference count); ``unpack`` adds the rest."""
+    (μ, owner, shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), owner b). ``solve`` builds only
+    these (each view costs a reference count); ``unpack`` adds the rest."""
     g, c, n = ints[I_GROUND], ints[I_C], ints[I_N]
     return (
         floats[o[O_MU] : o[O_MU] + c],
@@ -173,17 +241,19 @@ def solver_views(ints, floats, o):
         floats[o[O_RIM] : o[O_RIM] + n],
         block(floats, o[O_L], n, 9),
         block(floats, o[O_LINV], n, 9),
+        ints[o[O_OWNER_B] : o[O_OWNER_B] + c],
     )
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def unpack(d):
     """The views of ``contact_data``'s two arrays: (ints, floats, mu, eps, threshold, owner,
-    shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity)."""
+    shaped, mass, 1/√m, L (n, 9), L⁻¹ (n, 9), body data, points (G, V, 3), foot, gravity,
+    owner b)."""
     ints, floats = d
     g, c, n, v = ints[I_GROUND], ints[I_C], ints[I_N], ints[I_V]
     o = offsets(ints)
-    mu, owner, shaped, mass, rim, lflat, linv = solver_views(ints, floats, o)
+    mu, owner, shaped, mass, rim, lflat, linv, owner_b = solver_views(ints, floats, o)
     return (
         ints,
         floats,
@@ -200,6 +270,7 @@ def unpack(d):
         block3(floats, o[O_POINTS], g, v, 3),
         floats[o[O_FOOT] : o[O_FOOT] + g],
         floats[F_GRAVITY : F_GRAVITY + 3],
+        owner_b,
     )
 
 
@@ -272,54 +343,105 @@ def store_velocities(st, e, u):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def contact_velocity(cs, c, b, u, r):
-    """Row r (normal, t₁, t₂) of J u at contact slot row ``cs[c]`` on body b."""
+def pair_basis(cs, c, r):
+    """Row r of the contact basis (n, t₁, t₂) of a body–body contact (its ``NORMAL``)."""
+    n = (cs[c, NORMAL], cs[c, NORMAL + 1], cs[c, NORMAL + 2])
+    if r == 0:
+        return n
     t1 = (cs[c, T1], cs[c, T1 + 1], cs[c, T1 + 2])
-    basis = basis_row(t1, r)
-    arm = (cs[c, ARM], cs[c, ARM + 1], cs[c, ARM + 2])
+    if r == 1:
+        return t1
+    return cross(n, t1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def point_velocity(basis, arm, u, b):
+    """basis · (v_b + ω_b × arm), as bᵀ v + (arm × b)ᵀ ω."""
     rxb = cross(arm, basis)
     return (basis[0] * u[b, 0] + basis[1] * u[b, 1] + basis[2] * u[b, 2]) + (
         rxb[0] * u[b, 3] + rxb[1] * u[b, 4] + rxb[2] * u[b, 5]
     )
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def contact_velocity(cs, c, a, b, u, r):
+    """Row r (normal, t₁, t₂) of J u at contact slot row ``cs[c]`` between body a and body b
+    (b < 0: the ground): a's contact point's velocity relative to b's along that row."""
+    if b < 0:
+        t1 = (cs[c, T1], cs[c, T1 + 1], cs[c, T1 + 2])
+        return point_velocity(basis_row(t1, r), (cs[c, ARM], cs[c, ARM + 1], cs[c, ARM + 2]), u, a)
+    basis = pair_basis(cs, c, r)
+    va = point_velocity(basis, (cs[c, ARM], cs[c, ARM + 1], cs[c, ARM + 2]), u, a)
+    vb = point_velocity(basis, (cs[c, ARM_B], cs[c, ARM_B + 1], cs[c, ARM_B + 2]), u, b)
+    return va - vb
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rows_dot(cs, i, col_i, r, j, col_j, s):
+    """Row r of contact i's block at column ``col_i`` (``JT`` or ``JT_B``) dotted with row s of
+    contact j's at ``col_j``: their product over one body's 6 coordinates."""
+    acc = 0.0
+    for k in range(6):
+        acc += cs[i, col_i + 6 * r + k] * cs[j, col_j + 6 * s + k]
+    return acc
+
+
 @njit(cache=True, error_model="numpy")
-def delassus(cs, owner, rows, a):
+def delassus(cs, owner, owner_b, rows, a):
     """A = J̃ J̃ᵀ (rows·C, rows·C) over the first ``rows`` rows of each contact (3: all,
-    1: the normal block A_nn); contacts of different bodies do not couple."""
+    1: the normal block A_nn). Two contacts couple through each body they share (a ground
+    contact has one body, ``owner_b`` −1), summed in the bodies' order as numpy's product."""
     c = owner.shape[0]
     # The lower triangle, mirrored: entry (q, p) is the same products summed in the same order.
     for i in range(c):
+        ai, bi = owner[i], owner_b[i]
         for r in range(rows):
             p = rows * i + r
             for j in range(i + 1):
+                aj, bj = owner[j], owner_b[j]
                 for s in range(rows):
                     q = rows * j + s
                     if q > p:
                         break
                     acc = 0.0
-                    if owner[i] == owner[j]:
-                        for k in range(6):
-                            acc += cs[i, JT + 6 * r + k] * cs[j, JT + 6 * s + k]
+                    if bi < 0 and bj < 0:  # two ground contacts: one body at most
+                        if ai == aj:
+                            acc = _rows_dot(cs, i, JT, r, j, JT, s)
+                    else:
+                        # each body of contact i (a, then b) against the same body of j
+                        lo_i, hi_i = (ai, bi) if bi < 0 or ai < bi else (bi, ai)
+                        for body in (lo_i, hi_i):
+                            if body < 0:
+                                continue
+                            col_i = JT if body == ai else JT_B
+                            if body == aj:
+                                acc += _rows_dot(cs, i, col_i, r, j, JT, s)
+                            elif body == bj:
+                                acc += _rows_dot(cs, i, col_i, r, j, JT_B, s)
                     a[p, q] = acc
                     a[q, p] = acc
 
 
 @njit(cache=True, error_model="numpy")
-def add_impulses(st, e, cs, owner, lflat, rim, lam, rows, u, alpha):
+def add_impulses(st, e, cs, owner, owner_b, lflat, rim, lam, rows, u, alpha):
     """u += α M^(-1/2) J̃ᵀ λ (``Rows.velocity_change``) with impulses λ (rows·C); ``rows`` 3
-    (normal, t₁, t₂ per contact) or 1 (normal only)."""
+    (normal, t₁, t₂ per contact) or 1 (normal only). Body b of a body–body contact takes its
+    rows ``JT_B``, which carry the opposite sign."""
     n = u.shape[0]
     for b in range(n):
         d0 = d1 = d2 = d3 = d4 = d5 = 0.0
         touched = False
         for c in range(owner.shape[0]):
-            if owner[c] != b:
+            if owner[c] == b:
+                col = JT
+            elif owner_b[c] == b:
+                col = JT_B
+            else:
                 continue
             touched = True
             for r in range(rows):
                 lam_r = lam[rows * c + r]
-                j = JT + 6 * r
+                j = col + 6 * r
                 d0 += lam_r * cs[c, j]
                 d1 += lam_r * cs[c, j + 1]
                 d2 += lam_r * cs[c, j + 2]
@@ -350,6 +472,77 @@ def scaled_velocity(st, e, mass, linv, u, z):
             z[b, 3 + i] = zw[i]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def vec(contact, e, i, col):
+    """Columns col … col + 2 of slot i of element e's contact rows."""
+    return (contact[e, i, col], contact[e, i, col + 1], contact[e, i, col + 2])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def relative_velocity(v, w, e, a, b, arm_a, arm_b):
+    """World velocity of a's contact point relative to b's (``Layout.relative_velocity``)."""
+    spin_a = cross((w[e, a, 0], w[e, a, 1], w[e, a, 2]), arm_a)
+    spin_b = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm_b)
+    return (
+        (v[e, a, 0] + spin_a[0]) - (v[e, b, 0] + spin_b[0]),
+        (v[e, a, 1] + spin_a[1]) - (v[e, b, 1] + spin_b[1]),
+        (v[e, a, 2] + spin_a[2]) - (v[e, b, 2] + spin_b[2]),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def tangent(n, rel):
+    """``assembly.tangents``' t₁ for normal n: the sliding direction of the relative velocity,
+    else the unit part of (1, 0, 0), or of (0, 1, 0) for a normal near the x axis, normal to n."""
+    along = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2]
+    vt = (rel[0] - along * n[0], rel[1] - along * n[1], rel[2] - along * n[2])
+    speed = np.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
+    if speed > 1e-9:
+        return (vt[0] / speed, vt[1] / speed, vt[2] / speed)
+    helper = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
+    h = helper[0] * n[0] + helper[1] * n[1] + helper[2] * n[2]
+    perp = (helper[0] - h * n[0], helper[1] - h * n[1], helper[2] - h * n[2])
+    size = np.sqrt(perp[0] * perp[0] + perp[1] * perp[1] + perp[2] * perp[2])
+    return (perp[0] / size, perp[1] / size, perp[2] / size)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def assemble_pair(e, st, floats, o, i, a, b):
+    """``assembly.assemble`` for body–body slot i between bodies a and b: both take the
+    impulse at the midpoint of the two features (p_a − p_b = gap n: no impulse has a net
+    moment), so ``ARM`` and ``ARM_B`` become the arms to it; t₁ follows the relative sliding
+    there; body a's rows of J̃ go to ``JT``, body b's, negated, to ``JT_B``."""
+    contact, v, w = st[CONTACT], st[V], st[W]
+    normal = vec(contact, e, i, NORMAL)
+    gap = contact[e, i, GAP]
+    apart = gap if gap < FAR_GAP else 0.0  # (a slot with no contact point stays unshifted)
+    arms = (vec(contact, e, i, ARM), vec(contact, e, i, ARM_B))
+    for side in range(2):
+        sign = -0.5 if side == 0 else 0.5
+        col = ARM if side == 0 else ARM_B
+        for j in range(3):
+            contact[e, i, col + j] = arms[side][j] + sign * (apart * normal[j])
+    arm_a, arm_b = vec(contact, e, i, ARM), vec(contact, e, i, ARM_B)
+    t1 = tangent(normal, relative_velocity(v, w, e, a, b, arm_a, arm_b))
+    for j in range(3):
+        contact[e, i, T1 + j] = t1[j]
+    for side in range(2):
+        body = a if side == 0 else b
+        arm = arm_a if side == 0 else arm_b
+        col = JT if side == 0 else JT_B
+        sign = 1.0 if side == 0 else -1.0
+        q = (st[Q][e, body, 0], st[Q][e, body, 1], st[Q][e, body, 2], st[Q][e, body, 3])
+        scale = matmul(quat_to_matrix(q), tuple9(floats, o[O_L] + 9 * body))
+        rim = floats[o[O_RIM] + body]
+        for r in range(3):
+            basis = pair_basis(contact[e], i, r)
+            ang = rotate_inverse(scale, cross(arm, basis))
+            for j in range(3):
+                contact[e, i, col + 6 * r + j] = sign * (basis[j] * rim)
+                contact[e, i, col + 6 * r + 3 + j] = sign * ang[j]
+    contact[e, i, PATH_GAP] = gap
+
+
 # --- the stage -------------------------------------------------------------------------------
 
 
@@ -364,13 +557,21 @@ def assemble(e, st, d):
     contact = st[CONTACT]
     v, w = st[V], st[W]
     c = ints[I_C]
+    n_ground = ints[I_GROUND] * ints[I_K]
     engaged = False
-    for i in range(c):
+    for i in range(n_ground):
         b = ints[o[O_OWNER] + i]
         arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
         spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)
         vz = v[e, b, 2] + spin[2]
         if contact[e, i, GAP] + dt * min(vz, 0.0) < 0:
+            engaged = True
+    for i in range(n_ground, c):  # body–body: the relative velocity at the detected points
+        normal = vec(contact, e, i, NORMAL)
+        rel = relative_velocity(v, w, e, ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i],
+                                vec(contact, e, i, ARM), vec(contact, e, i, ARM_B))
+        vn = rel[0] * normal[0] + rel[1] * normal[1] + rel[2] * normal[2]
+        if contact[e, i, GAP] + dt * min(vn, 0.0) < 0:
             engaged = True
     if engaged:  # (no early return: see ``ground.detect``'s note)
         st[REPORT][e, ENGAGED] = 1.0
@@ -380,7 +581,9 @@ def assemble(e, st, d):
             for i in range(3):
                 contact[e, g * k, U1 + i] = v[e, b, i]
                 contact[e, g * k, U1 + 3 + i] = w[e, b, i]
-        for i in range(c):
+        for i in range(n_ground, c):
+            assemble_pair(e, st, floats, o, i, ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i])
+        for i in range(n_ground):
             b = ints[o[O_OWNER] + i]
             arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])
             spin = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm)

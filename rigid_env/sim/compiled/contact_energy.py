@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..contacts.stages import MAX_HALVINGS
 from .bodies import BODY_WIDTH, DIAGONAL, INERTIA, inertia_times
 from .cache import njit
@@ -20,6 +22,7 @@ from .contact_assembly import (
     F_GRAVITY,
     I_GRAVITY,
     I_GROUND,
+    I_GROUPS,
     I_K,
     I_N,
     I_SPRINGS,
@@ -58,6 +61,7 @@ from .layout import (
     W,
     X,
 )
+from .contact_pairs import pair_pushes
 from .registry import Kernel, register
 from .rotation import (
     cross,
@@ -240,6 +244,54 @@ def trapezoid_terms(floats, at, q, u0v, u0w, v, w):
     return cross_term, square
 
 
+@njit(cache=True, error_model="numpy")
+def separated(ints, floats, o, x, q, out):
+    """``stages.separated`` at poses x (n, 3), q (n, 4) of a scene with body–body contacts:
+    out (n, 3) ← x with each body on the ground lifted by its deepest overlap, then each pair
+    pushed apart (``contact_pairs.pair_pushes``), both found at (x, q). Returns whether
+    anything overlapped."""
+    n = x.shape[0]
+    push = np.empty((n, 3))
+    moved = pair_pushes(ints, floats, o, x, q, push)
+    for b in range(n):
+        for j in range(3):
+            out[b, j] = x[b, j]
+    for g in range(ints[I_GROUND]):
+        b = ints[o[O_SHAPED] + g]
+        deep = depth(floats, o, ints, g, (q[b, 0], q[b, 1], q[b, 2], q[b, 3]), x[b, 2])
+        if deep > 0:
+            out[b, 2] += deep
+            moved = True
+    if moved:
+        for b in range(n):
+            for j in range(3):
+                out[b, j] += push[b, j]
+    return moved
+
+
+@njit(cache=True, error_model="numpy")
+def separated_end_potential(st, e, ints, floats, o, h, elapsed, k):
+    """Σ_b m (x · g) at the separated end positions of a scene with body–body contacts:
+    x_end = base + h v, q_end = exp(h ω) q_path for every body (``LimitEnergy``)."""
+    n = ints[I_N]
+    x_end, q_end, out = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3))
+    v, w = st[V], st[W]
+    for b in range(n):
+        base = base_position(st, e, b, elapsed)
+        for j in range(3):
+            x_end[b, j] = base[j] + h * v[e, b, j]
+        turn = quat_exp((h * w[e, b, 0], h * w[e, b, 1], h * w[e, b, 2]))
+        q_path = path_orientation(st, e, b, slot_of(ints, o, b), k, elapsed)
+        qb = quat_normalize(quat_multiply(turn, q_path))
+        for j in range(4):
+            q_end[b, j] = qb[j]
+    separated(ints, floats, o, x_end, q_end, out)
+    total = 0.0
+    for b in range(n):
+        total += potential_term(floats, o, b, (out[b, 0], out[b, 1], out[b, 2]))
+    return total
+
+
 # Called by the driver for every element of a contact step (``driver`` says why a call).
 @njit(cache=True, error_model="numpy")
 def limit_energy(e, st, d):
@@ -312,10 +364,13 @@ def limit_energy(e, st, d):
         f = min(max(root, 0.0), 1.0)
     # The separated end positions must fit as well: halve f until they do.
     over = False
+    pairs = ints[I_GROUPS] > 0
     for _ in range(MAX_HALVINGS):
         h = f * tail
         total = 0.0
-        for b in range(n):
+        if pairs:
+            total = separated_end_potential(st, e, ints, floats, o, h, elapsed, k)
+        for b in range(n if not pairs else 0):
             g = slot_of(ints, o, b)
             base = base_position(st, e, b, elapsed)
             vb = vec3(v, e, b)
@@ -394,7 +449,12 @@ def separate_contacts(e, st, d):
     for b in range(n):
         before += potential_term(floats, o, b, vec3(x, e, b))
     moved = False
-    for g in range(ints[I_GROUND]):
+    if ints[I_GROUPS] > 0:  # body–body contacts: every overlap found before any is removed
+        out = np.empty((n, 3))
+        moved = separated(ints, floats, o, x[e], q[e], out)
+        if moved:
+            x[e] = out
+    for g in range(ints[I_GROUND] if ints[I_GROUPS] == 0 else 0):
         b = ints[o[O_SHAPED] + g]
         deep = depth(floats, o, ints, g, vec4(q, e, b), x[e, b, 2])
         if deep > 0:

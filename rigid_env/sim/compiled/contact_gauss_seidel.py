@@ -93,16 +93,16 @@ def velocity_scale(free, target):
 
 @njit(cache=True, error_model="numpy")
 def gauss_seidel(
-    a, free, target, mu, lam, extra, r, max_iterations, tolerance, work, decomposed=False
+    a, free, target, mu, lam, extra, r, max_iterations, tolerance, scale, work, decomposed=False
 ):
     """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
-    budget (r = 3); ``work`` scratch of ``WORK_PER_CONTACT`` C floats; ``decomposed``: its
-    first 6C floats already hold this A's A_tt decompositions (an earlier call on the same A
-    and ``work``). Returns (sweeps, converged)."""
+    budget (r = 3); ``scale`` the stopping test's velocity scale (``velocity_scale``, or
+    ``solve.contact_scales``' rule); ``work`` scratch of ``WORK_PER_CONTACT`` C floats;
+    ``decomposed``: its first 6C floats already hold this A's A_tt decompositions (an earlier
+    call on the same A and ``work``). Returns (sweeps, converged)."""
     c = target.shape[0]
     size = r * c
-    scale = velocity_scale(free, target)
     # work[6i : 6i + 6]: e₀, e₁, Q of contact i's A_tt; then λ before the sweep (indexed in
     # place: a view per call costs a reference count)
     if r == 3 and not decomposed:

@@ -35,7 +35,7 @@ from .contact_assembly import (
     store_velocities,
     unpack,
 )
-from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel
+from .contact_gauss_seidel import WORK_PER_CONTACT, gauss_seidel, velocity_scale
 from .layout import (
     ARM,
     CAPPED,
@@ -66,7 +66,9 @@ def restitute(e, st, d):
         return
     if not _may_strike(e, st, d):
         return
-    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = unpack(d)[:11]
+    views = unpack(d)
+    ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = views[:11]
+    owner_b = views[15]
     c = owner.shape[0]
     dt = floats[F_DT]
     cs = st[CONTACT][e]
@@ -103,8 +105,8 @@ def restitute(e, st, d):
             u0[b, 3 + j] = st[W0][e, b, j]
     load_velocities(st, e, u)
     for i in range(c):  # s: the normal part of half the step's non-contact velocity change
-        vn0 = contact_velocity(cs, i, owner[i], u0, 0)
-        vn1 = contact_velocity(cs, i, owner[i], u, 0)
+        vn0 = contact_velocity(cs, i, owner[i], owner_b[i], u0, 0)
+        vn1 = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
         half[i] = 0.5 * (vn1 - vn0)
     k = ints[I_K]
     for g in range(shaped.shape[0]):  # the path's orientation starts at the working q
@@ -116,7 +118,7 @@ def restitute(e, st, d):
     for _ in range(max_impacts + 2):
         first = math.inf
         for i in range(c):
-            vn[i] = contact_velocity(cs, i, owner[i], u, 0)
+            vn[i] = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
             g = cs[i, PATH_GAP]
             close = max(g, 0.0) / (-vn[i] if vn[i] < 0 else 1.0)  # time to close
             at = min(elapsed + close, dt)
@@ -135,13 +137,14 @@ def restitute(e, st, d):
             for i in range(c):
                 g = cs[i, PATH_GAP]
                 goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
-            delassus(cs, owner, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
+            delassus(cs, owner, owner_b, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
             held = True
             if not _event(
                 st,
                 e,
                 cs,
                 owner,
+                owner_b,
                 lflat,
                 rim,
                 mass,
@@ -165,8 +168,8 @@ def restitute(e, st, d):
             # acceleration is the one the supports leave (restitution.resolve_impacts).
             for i in range(c):
                 loaded[i] = cs[i, IMPULSE] > 0.0 and not eligible[i]
-                vn1 = contact_velocity(cs, i, owner[i], u, 0)
-                half[i] = 0.5 * (vn1 - contact_velocity(cs, i, owner[i], u0, 0))
+                vn1 = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
+                half[i] = 0.5 * (vn1 - contact_velocity(cs, i, owner[i], owner_b[i], u0, 0))
             continue
         if events >= max_impacts:
             report[e, CAPPED] = 1.0
@@ -208,6 +211,7 @@ def restitute(e, st, d):
             e,
             cs,
             owner,
+            owner_b,
             lflat,
             rim,
             mass,
@@ -284,6 +288,7 @@ def _event(
     e,
     cs,
     owner,
+    owner_b,
     lflat,
     rim,
     mass,
@@ -309,11 +314,12 @@ def _event(
     c = lam.shape[0]
     for i in range(c):
         lam[i] = 0.0
+    scale = velocity_scale(vn, goal)
     _, converged = gauss_seidel(
-        a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, work, np.bool_(False)
+        a_nn, vn, goal, mu, lam, none, 1, max_iterations, tolerance, scale, work, np.bool_(False)
     )
     du[:] = 0.0
-    add_impulses(st, e, cs, owner, lflat, rim, lam, 1, du, 1.0)
+    add_impulses(st, e, cs, owner, owner_b, lflat, rim, lam, 1, du, 1.0)
     scaled_velocity(st, e, mass, linv, u, z)
     scaled_velocity(st, e, mass, linv, du, dz)
     # The largest α ∈ [0, 1] with |z + α dz| ≤ |z|: the event adds no kinetic energy.

@@ -26,7 +26,7 @@ from ..contacts.newton import (
 )
 from . import cholesky
 from .cache import njit
-from .contact_gauss_seidel import gauss_seidel, sweep_change, velocity_scale
+from .contact_gauss_seidel import gauss_seidel, sweep_change
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -249,12 +249,12 @@ def jump(a, free, target, mu, extra, lam, factor, phi, zn, zt, rho, trial, f2, z
 
 
 @njit(cache=True, error_model="numpy")
-def newton(a, free, target, mu, lam, extra, budget, tolerance):
+def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
     """``newton.newton`` for one element: at most ``budget`` steps from ``lam`` (3C,),
     updated in place. Returns the steps taken."""
     c = target.shape[0]
     size = 3 * c
-    goal = MARGIN * tolerance * velocity_scale(free, target)
+    goal = MARGIN * tolerance * scale
     # One scratch allocation carved into views (thirteen cost ~0.6 µs per call).
     buf = np.empty(2 * size * size + 4 * size + 8 * c)
     g = buf[: size * size].reshape((size, size))
@@ -331,6 +331,7 @@ def converge(
     extra,
     max_iterations,
     tolerance,
+    scale,
     newton_after,
     newton_steps,
     work,
@@ -349,7 +350,7 @@ def converge(
     while sweeps < max_iterations:
         chunk = min(newton_after, max_iterations - sweeps)
         more, done = gauss_seidel(
-            a, free, target, mu, lam, extra, 3, chunk, tolerance, work, decomposed
+            a, free, target, mu, lam, extra, 3, chunk, tolerance, scale, work, decomposed
         )
         decomposed = True
         sweeps += more
@@ -359,9 +360,22 @@ def converge(
             before = sweep_change(a, work, size)
             for k in range(size):
                 work[saved + k] = lam[k]
-            steps += newton(a, free, target, mu, lam, extra, newton_steps - steps, tolerance)
+            steps += newton(
+                a, free, target, mu, lam, extra, newton_steps - steps, tolerance, scale
+            )
             more, done = gauss_seidel(
-                a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, work, np.bool_(True)
+                a,
+                free,
+                target,
+                mu,
+                lam,
+                extra,
+                3,
+                np.int64(1),
+                tolerance,
+                scale,
+                work,
+                np.bool_(True),
             )
             sweeps += more
             if done:

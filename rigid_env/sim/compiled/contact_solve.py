@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..contacts.assembly import FAR_GAP
 from ..contacts.stages import REPORT_KEY, ContactReport, warn_capped
 from .cache import njit
 from .contact_assembly import (
@@ -49,6 +50,7 @@ from .layout import (
     IMPULSE,
     ITERATIONS,
     JT,
+    JT_B,
     NEWTON,
     PATH_GAP,
     REPORT,
@@ -62,7 +64,7 @@ from .registry import Kernel, register
 
 
 @njit(cache=True, error_model="numpy")
-def dissipative(st, e, cs, owner, mass, linv, u, lam):
+def dissipative(st, e, cs, owner, owner_b, mass, linv, u, lam):
     """``solve.dissipative``: scale λ to the most dissipative point of its ray if it would
     add kinetic energy (z = M^(1/2) u, dz = J̃ᵀ λ)."""
     n = u.shape[0]
@@ -75,9 +77,10 @@ def dissipative(st, e, cs, owner, mass, linv, u, lam):
         for k in range(6):
             dz = 0.0
             for c in range(owner.shape[0]):
-                if owner[c] == b:
+                col = JT if owner[c] == b else (JT_B if owner_b[c] == b else -1)
+                if col >= 0:
                     for r in range(3):
-                        dz += lam[3 * c + r] * cs[c, JT + 6 * r + k]
+                        dz += lam[3 * c + r] * cs[c, col + 6 * r + k]
             lin += z[b, k] * dz
             quad += dz * dz
             zz += z[b, k] * z[b, k]
@@ -95,7 +98,7 @@ def solve(e, st, d):
         st[CONTACT][e, 0, WARM_OK] = 0.0  # the next step starts cold
         return
     ints, floats = d
-    mu, owner, shaped, mass, rim, lflat, linv = solver_views(ints, floats, offsets(ints))
+    mu, owner, shaped, mass, rim, lflat, linv, owner_b = solver_views(ints, floats, offsets(ints))
     dt = floats[F_DT]
     tolerance = floats[F_TOLERANCE]
     k = ints[I_K]
@@ -119,15 +122,27 @@ def solve(e, st, d):
     work = buf[o + 3 * c :]
     load_velocities(st, e, u)
     u_in[:] = u
-    delassus(cs, owner, 3, a)
+    delassus(cs, owner, owner_b, 3, a)
     remaining = dt - report[e, ELAPSED]
     for i in range(c):
         for r in range(3):
-            free[3 * i + r] = contact_velocity(cs, i, owner[i], u, r)
+            free[3 * i + r] = contact_velocity(cs, i, owner[i], owner_b[i], u, r)
         gap = cs[i, PATH_GAP]
         target[i] = -gap / remaining if gap > 0 else 0.0
         short[i] = target[i] - free[3 * i]
         extra[i] = cs[i, IMPULSE]
+    # ``solve.contact_scales``: the stopping tests' velocity scale and the active-set start's
+    # shortfall scale, over the slots that hold a contact point (a box–box slot without one
+    # has the gap ``box_box.FAR``, and a target that is no velocity of the problem).
+    scale = 0.0
+    for row in range(3 * c):
+        scale = max(scale, abs(free[row]))
+    shortfall = 0.0
+    for i in range(c):
+        if cs[i, PATH_GAP] < FAR_GAP:
+            scale = max(scale, abs(target[i]))
+            shortfall = max(shortfall, abs(short[i]))
+    scale = max(scale, 1e-300)
     warm = ints[I_WARM] != 0 and cs[0, WARM_OK] != 0.0
     if warm:  # the previous step's answer (``SolverSettings.warm_start``)
         report[e, WARMED] = 1.0
@@ -138,7 +153,7 @@ def solve(e, st, d):
         lam[:] = 0.0
         particle_start(short, mass, shaped, k, lam, 3)
     sweeps, converged = gauss_seidel(
-        a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, work, np.bool_(False)
+        a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, scale, work, np.bool_(False)
     )
     max_iterations = ints[I_MAX_ITERATIONS]
     steps = 0
@@ -153,7 +168,7 @@ def solve(e, st, d):
             reachable = np.empty(c, np.bool_)
             for i in range(c):
                 reachable[i] = short[i] > 0 or cs[i, PATH_GAP] <= reach
-            active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
+            active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam, shortfall)
         more, converged, steps = converge(
             a,
             free,
@@ -163,6 +178,7 @@ def solve(e, st, d):
             extra,
             max_iterations,
             tolerance,
+            scale,
             ints[I_NEWTON_AFTER],
             ints[I_NEWTON_STEPS],
             work,
@@ -175,8 +191,8 @@ def solve(e, st, d):
                 cs[i, WARM + r] = lam[3 * i + r]
         cs[0, WARM_OK] = 1.0 if converged else 0.0
     if not converged:
-        dissipative(st, e, cs, owner, mass, linv, u, lam)
-    add_impulses(st, e, cs, owner, lflat, rim, lam, 3, u, 1.0)
+        dissipative(st, e, cs, owner, owner_b, mass, linv, u, lam)
+    add_impulses(st, e, cs, owner, owner_b, lflat, rim, lam, 3, u, 1.0)
     store_velocities(st, e, u)
     touched = False
     for i in range(c):

@@ -29,9 +29,11 @@ def particle_start(short, mass, shaped, k, lam, rows):
 
 
 @njit(cache=True, error_model="numpy")
-def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam):
+def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam, shortfall):
     """``warm_start.active_set_start`` for one element: ``lam`` (3C,) ← the start; ``free``
-    (3C,) the free contact velocities (its tangent rows are the slip), A (3C, 3C)."""
+    (3C,) the free contact velocities (its tangent rows are the slip), A (3C, 3C);
+    ``shortfall`` the largest |short| of the slots that hold a contact point, of which the
+    push test's tolerance is a share (``solve.contact_scales``)."""
     c = short.shape[0]
     size = 3 * c
     # Scratch in three allocations (each costs ~0.05 µs; this runs on most contact steps).
@@ -64,10 +66,7 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam)
         direction[i, 1] = 0.0
     for i in range(size):
         known[i] = 0.0
-    push = 0.0  # PUSH_TOLERANCE × the largest |short| (``warm_start``)
-    for i in range(c):
-        push = max(push, abs(short[i]))
-    push *= PUSH_TOLERANCE
+    push = PUSH_TOLERANCE * shortfall
     settled = False
     for _ in range(ROUNDS):
         any_bound = False

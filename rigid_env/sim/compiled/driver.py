@@ -161,10 +161,10 @@ def generate(
         + "):",
         "    size = x0.shape[0]",
         "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
-        f"    contact = np.zeros((size, slots, {layout.CONTACT_WIDTH}))",
+        f"    contact = np.zeros((size, slots, {max(k.width for k in kernels)}))",
     ]
     if warm:  # the impulses the state carries: the first step warm-starts from them
-        lines.append(f"    contact[:, :, {layout.WARM}:] = warm_in")
+        lines.append(f"    contact[:, :, {layout.WARM}:{layout.WARM_END}] = warm_in")
     lines += [
         "    total = report",
         "    if steps > 1:  # the start slots carry each step's result into the next: copies",
@@ -226,7 +226,7 @@ def generate(
         "            capped += 1",
     ]
     if warm:  # and the last step's, for the state the step returns
-        lines.append(f"    warm_out[:] = contact[:, :, {layout.WARM}:]")
+        lines.append(f"    warm_out[:] = contact[:, :, {layout.WARM}:{layout.WARM_END}]")
     lines += [
         "    return bad_orientation, diverged, capped",
     ]

@@ -41,10 +41,30 @@ CONTACT_COLUMNS = (
     # kept between the steps of one call (``steps.carry`` zeroes the columns before WARM only)
     ("WARM", 3),  # the impulse (n, t₁, t₂) the previous step's solve ended with
     ("WARM_OK", 1),  # in slot 0: 1.0 when that solve converged (``SolverSettings.warm_start``)
+    # a scene with body–body contacts only (``contact_pairs``); ARM is then body a's arm
+    ("NORMAL", 3),  # the contact normal, from body b to body a (a ground slot's is +z)
+    ("ARM_B", 3),  # world vector from body b's centre of mass to its contact point
+    ("JT_B", 18),  # body b's rows of J̃, negated (it takes the opposite impulse), as ``JT``
 )
-ARM, GAP, BODY, JT, T1, PATH_GAP, IMPULSE, U1, PATH_Q, WARM, WARM_OK, CONTACT_WIDTH = columns(
-    CONTACT_COLUMNS
-)
+(
+    ARM,
+    GAP,
+    BODY,
+    JT,
+    T1,
+    PATH_GAP,
+    IMPULSE,
+    U1,
+    PATH_Q,
+    WARM,
+    WARM_OK,
+    NORMAL,
+    ARM_B,
+    JT_B,
+    CONTACT_WIDTH,
+) = columns(CONTACT_COLUMNS)
+GROUND_WIDTH = NORMAL  # the columns of a scene whose contacts are all ground contacts
+WARM_END = WARM_OK + 1
 SOLVER = JT  # the first column of the contact solve's
 
 # Columns of ``report``, one each (the contact solve's; see ``contacts.stages.ContactReport``).

@@ -7,13 +7,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .layout import GROUND_WIDTH
+
 
 @dataclass(frozen=True)
 class Kernel:
     """An element kernel ``module.name(e, st, d)`` and its data ``d``.
 
     ``template``: the function is undecorated source calling ``wrench`` (an integrator), copied
-    into the generated driver. ``slots``: contact slots it writes (detection), per element.
+    into the generated driver. ``slots``: contact slots it writes (detection), per element;
+    ``width``: the columns of ``layout.CONTACT_COLUMNS`` it uses (a ground scene's are fewer
+    than a scene's with body–body contacts: the step zeroes every column of every slot).
     ``report``: for a kernel that writes ``report`` columns, ``report(columns, counts) -> dict``
     turns the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy
     twin writes ``ctx.report``); ``counts`` is None, or for a call of several steps the
@@ -26,6 +30,7 @@ class Kernel:
     data: tuple = ()
     template: bool = False
     slots: int = 0
+    width: int = GROUND_WIDTH
     report: Callable[[np.ndarray, np.ndarray | None], dict] | None = None
 
 

@@ -20,6 +20,7 @@ from .layout import (
     V0,
     W0,
     WARM,
+    WARM_END,
     X0,
     Q,
     V,
@@ -100,6 +101,8 @@ def carry(e, st, total):
     contact = st[CONTACT]
     for c in range(contact.shape[1]):
         for i in range(WARM):  # the warm-start columns carry over (``layout``)
+            contact[e, c, i] = 0.0
+        for i in range(WARM_END, contact.shape[2]):
             contact[e, c, i] = 0.0
     report = st[REPORT]
     for i in range(report.shape[1]):

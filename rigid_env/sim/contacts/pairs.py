@@ -27,6 +27,7 @@ def sphere_sphere(ra, rb):
 
         return kernels.run(kernels.sphere_sphere, (xa, qa, xb, qb), params)
 
+    detect.params = params  # the kernel's shape tables (``compiled.contact_pairs``)
     return detect
 
 
@@ -40,6 +41,7 @@ def sphere_box(radius, half_extents):
 
         return kernels.run(kernels.sphere_box, (xa, qa, xb, qb), params)
 
+    detect.params = params
     return detect
 
 

@@ -1,0 +1,173 @@
+"""Body–body contacts of one element: detection into the contact slots, and the separation
+that ``contact_energy`` applies, mirroring ``contacts.pairs``, ``Layout.gather`` and
+``stages.separated`` for the pairs.
+
+The pairs' slots follow the ground's (``Layout``: G bodies × K slots, then each group of pairs
+of one kind, S slots per pair). Detection runs the kernels of ``compiled.pairs``, the one
+implementation of body–body detection, on each group's poses gathered from the element's
+bodies. The solve's rows then take each contact between its two bodies (``contact_assembly``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .cache import njit
+from .contact_assembly import (
+    G_FIRST_PAIR,
+    G_FIRST_SLOT,
+    G_KIND,
+    G_PAIRS,
+    G_SHAPES,
+    G_SLOTS,
+    GROUP_WIDTH,
+    I_C,
+    I_GROUND,
+    I_GROUPS,
+    I_K,
+    O_GROUPS,
+    O_MASS,
+    O_PAIR_A,
+    O_PAIR_B,
+    O_SHAPES,
+    block,
+    contact_data,
+    offsets,
+)
+from .layout import ARM, ARM_B, BODY, CONTACT, CONTACT_WIDTH, GAP, NORMAL, Q, X
+from .pairs import box_box, sphere_box, sphere_sphere
+from .registry import Kernel, register
+
+KINDS = ("sphere_sphere", "sphere_box", "box_box")  # ``PairContacts.kinds``, by index
+
+
+def shape_table(kind: str, params: tuple) -> np.ndarray:
+    """A group's shape parameters (``compiled.pairs``' tables, P rows each) one after the
+    other, flat: sphere–sphere ra, rb; sphere–box radius, half extents; box–box half extents
+    of a and of b, face margin."""
+    if kind not in KINDS:
+        raise ValueError(f"no compiled detection for {kind!r} pairs")
+    return np.concatenate([np.asarray(p, float).reshape(-1) for p in params])
+
+
+@njit(cache=True, error_model="numpy")
+def detect_pairs(ints, floats, o, x, q, arm_a, arm_b, normal, gap):
+    """Every pair slot's arms, normal (from b to a) and gap at the element's poses x (n, 3),
+    q (n, 4), into rows 0 … (C − G·K) of the outputs (the pair slots in ``Layout`` order)."""
+    n_ground = ints[I_GROUND] * ints[I_K]
+    for g in range(ints[I_GROUPS]):
+        row = o[O_GROUPS] + GROUP_WIDTH * g
+        kind, p, slots = ints[row + G_KIND], ints[row + G_PAIRS], ints[row + G_SLOTS]
+        first = ints[row + G_FIRST_PAIR]
+        start = ints[row + G_FIRST_SLOT] - n_ground
+        at = o[O_SHAPES] + ints[row + G_SHAPES]
+        xa, xb = np.empty((p, 3)), np.empty((p, 3))
+        qa, qb = np.empty((p, 4)), np.empty((p, 4))
+        for m in range(p):
+            ia, ib = ints[o[O_PAIR_A] + first + m], ints[o[O_PAIR_B] + first + m]
+            for j in range(3):
+                xa[m, j] = x[ia, j]
+                xb[m, j] = x[ib, j]
+            for j in range(4):
+                qa[m, j] = q[ia, j]
+                qb[m, j] = q[ib, j]
+        out_a, out_b, out_n = np.empty((p, slots, 3)), np.empty((p, slots, 3)), np.empty((p, slots, 3))
+        out_gap = np.empty((p, slots))
+        if kind == 0:
+            ra, rb = floats[at : at + p], floats[at + p : at + 2 * p]
+            sphere_sphere(xa, qa, xb, qb, ra, rb, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0])
+        elif kind == 1:
+            radius, half = floats[at : at + p], block(floats, at + p, p, 3)
+            sphere_box(xa, qa, xb, qb, radius, half, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0])
+        else:
+            half_a, half_b = block(floats, at, p, 3), block(floats, at + 3 * p, p, 3)
+            margin = floats[at + 6 * p : at + 7 * p]
+            box_box(xa, qa, xb, qb, half_a, half_b, margin, out_a, out_b, out_n, out_gap)
+        for m in range(p):
+            for s in range(slots):
+                r = start + m * slots + s
+                gap[r] = out_gap[m, s]
+                for j in range(3):
+                    arm_a[r, j] = out_a[m, s, j]
+                    arm_b[r, j] = out_b[m, s, j]
+                    normal[r, j] = out_n[m, s, j]
+
+
+@njit(cache=True, error_model="numpy")
+def collide(e, st, d):
+    """``CollidePairs`` for one element: detection at the working poses (the start's)."""
+    ints, floats = d
+    o = offsets(ints)
+    n_ground = ints[I_GROUND] * ints[I_K]
+    rows = ints[I_C] - n_ground
+    arm_a, arm_b, normal = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
+    gap = np.empty(rows)
+    detect_pairs(ints, floats, o, st[X][e], st[Q][e], arm_a, arm_b, normal, gap)
+    contact = st[CONTACT]
+    for r in range(rows):
+        i = n_ground + r
+        for j in range(3):
+            contact[e, i, ARM + j] = arm_a[r, j]
+            contact[e, i, ARM_B + j] = arm_b[r, j]
+            contact[e, i, NORMAL + j] = normal[r, j]
+        contact[e, i, GAP] = gap[r]
+        contact[e, i, BODY] = ints[o[O_PAIR_A] + pair_of(ints, o, r)]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def pair_of(ints, o, r):
+    """The pair (index into the ``O_PAIR_*`` tables) of pair slot r (0: the first pair slot)."""
+    n_ground = ints[I_GROUND] * ints[I_K]
+    for g in range(ints[I_GROUPS]):
+        row = o[O_GROUPS] + GROUP_WIDTH * g
+        start = ints[row + G_FIRST_SLOT] - n_ground
+        slots = ints[row + G_SLOTS]
+        if r < start + ints[row + G_PAIRS] * slots:
+            return ints[row + G_FIRST_PAIR] + (r - start) // slots
+    return -1
+
+
+@njit(cache=True, error_model="numpy")
+def pair_pushes(ints, floats, o, x, q, push):
+    """``stages.separated``'s body–body part at poses x (n, 3), q (n, 4): push (n, 3) ← the sum
+    over pairs, in their order, of each pair's deepest overlap along its normal, split by mass
+    (a moves by m_b/(m_a + m_b) of it, b by −m_a/(m_a + m_b): momentum unchanged). Returns
+    whether a pair overlaps."""
+    n_ground = ints[I_GROUND] * ints[I_K]
+    rows = ints[I_C] - n_ground
+    arm_a, arm_b, normal = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
+    gap = np.empty(rows)
+    detect_pairs(ints, floats, o, x, q, arm_a, arm_b, normal, gap)
+    push[:] = 0.0
+    found = False
+    for g in range(ints[I_GROUPS]):
+        row = o[O_GROUPS] + GROUP_WIDTH * g
+        slots = ints[row + G_SLOTS]
+        start = ints[row + G_FIRST_SLOT] - n_ground
+        first = ints[row + G_FIRST_PAIR]
+        for m in range(ints[row + G_PAIRS]):
+            r0 = start + m * slots
+            deepest = -gap[r0]
+            for s in range(1, slots):
+                deepest = max(deepest, -gap[r0 + s])
+            if not deepest > 0:
+                continue
+            found = True
+            a, b = ints[o[O_PAIR_A] + first + m], ints[o[O_PAIR_B] + first + m]
+            ma, mb = floats[o[O_MASS] + a], floats[o[O_MASS] + b]
+            share_a, share_b = mb / (ma + mb), -ma / (ma + mb)
+            for j in range(3):
+                step = deepest * normal[r0, j]
+                push[a, j] += share_a * step
+                push[b, j] += share_b * step
+    return found
+
+
+@register("collide_pairs")
+def _collide_pairs(scene):
+    data = contact_data(scene)
+    if data is None:
+        return None
+    stage = next(s for s in scene.pipeline if s.name == "collide_pairs")
+    slots = sum(len(pa) * s for pa, _, _, s in stage.pairs.groups)
+    return Kernel(__name__, "collide", data, slots=slots, width=CONTACT_WIDTH)
