@@ -13,10 +13,9 @@ Scenes of 1 kg cubes (half extent 0.1 m, friction 0.5, restitution 0, gravity �
 What is measured, per scene, engine and batch size (1 and 256 in the full run):
 
 - the wall time per step and per body-step (µs). rigid_env batches over a leading axis (one
-  ``Scene.step`` call for the whole batch); body–body contacts have no compiled kernel, so
-  these scenes run on its numpy path, which is slow: its runs stop after a fixed number of
-  steps or a time budget, whichever comes first, and say how many steps they timed (the first
-  step of a run is left out when there are others). MuJoCo has no batch axis: a batch is that
+  ``Scene.step`` call for the whole batch; these scenes, without restitution, step compiled);
+  its runs stop after a fixed number of steps or a time budget, whichever comes first, and say
+  how many steps they timed (the first step of a run is left out when there are others). MuJoCo has no batch axis: a batch is that
   many ``MjData``, each stepped by one ``mj_step(..., nstep)`` call after the other, one
   thread. For the resting scenes the cost is the same every step, so runs of different
   lengths compare; the heap's is not, so its ratio is given only for the same window.
@@ -25,12 +24,14 @@ What is measured, per scene, engine and batch size (1 and 256 in the full run):
   says how many), at batch 1. MuJoCo's soft contacts let the boxes sink into each other and
   the ground until the contact springs carry the weight; rigid_env's contacts are hard.
 
-rigid_env's contact solve on the numpy path assembles dense matrices over every contact slot of
-the scene (3 rows per slot, 4 slots per box pair and 8 per box on the ground): a step that
-engages a contact holds about ``CONTACT_COPIES`` of a (3c)² float64 matrix per batch element.
-A run that would need more than half the available memory is not made; for the heap (24960
-rows at 64 boxes, ~5 GB per matrix) that leaves the steps before the lowest box can reach the
-ground (``free_steps``), which are timed and marked "in flight only".
+rigid_env's contact solve assembles dense matrices over every contact slot of the scene (3 rows
+per slot, 4 slots per box pair and 4 per box on the ground; no broad phase yet): the compiled
+step solves one batch element at a time and holds about ``COMPILED_COPIES`` (3c)² float64
+matrices while it does, beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and
+element); the numpy step holds about ``CONTACT_COPIES`` per batch element. A run that would
+need more than half the available memory is not made; for the heap (24960 rows at 64 boxes,
+~5 GB per matrix) that leaves the steps before the lowest box can reach the ground
+(``free_steps``), which are timed and marked "in flight only".
 
 numpy's OpenBLAS is set to one thread (``limit_blas_threads``) so both engines use one core.
 """
@@ -49,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from rigid_env import cli, resources, sim
+from rigid_env.sim.compiled.layout import CONTACT_WIDTH
 from rigid_env.sim.rotation import quat_exp, quat_to_matrix
 
 from . import peers, report
@@ -64,7 +66,10 @@ RESTITUTION = 0.0
 ROW_GAP = 1e-3  # m, between the boxes of a pyramid's row
 HEAP_DROP = 0.1  # m, the heap's lowest corner above the ground at the start
 HEAP_SEED = 0
-CONTACT_COPIES = 10  # (3c)² matrices alive in a contact step (measured ~8 at 4 and 8 boxes)
+CONTACT_COPIES = 10  # (3c)² matrices alive in a numpy contact step (measured ~8 at 4 and 8 boxes)
+# The compiled solve's scratch: the Delassus matrix and the active-set start's system and its
+# factorisation (``compiled.contact_solve``, ``contact_starts``), one element at a time.
+COMPILED_COPIES = 5
 MEMORY_SHARE = 0.5  # of the available memory, at most, for one rigid_env run
 ENGINE = "rigid_env numpy"
 
@@ -170,13 +175,16 @@ def rigid_scene(count: int) -> sim.Scene:
 
 
 def contact_rows(scene: sim.Scene) -> int:
-    """Rows of ``scene``'s contact matrices on the numpy path: 3 per contact slot."""
+    """Rows of ``scene``'s contact matrices: 3 per contact slot."""
     return 3 * max((s.layout.c for s in scene.pipeline if hasattr(s, "layout")), default=0)
 
 
 def contact_bytes(scene: sim.Scene, batch: int) -> float:
-    """Memory of a contact step of ``scene`` at ``batch`` on the numpy path (module docstring)."""
-    return CONTACT_COPIES * contact_rows(scene) ** 2 * 8.0 * batch
+    """Memory of a contact step of ``scene`` at ``batch`` (module docstring)."""
+    rows = contact_rows(scene)
+    if scene.backend == "numpy":
+        return CONTACT_COPIES * rows**2 * 8.0 * batch
+    return COMPILED_COPIES * rows**2 * 8.0 + batch * rows / 3 * CONTACT_WIDTH * 8.0
 
 
 def limit_blas_threads(threads: int = 1) -> str:
