@@ -27,8 +27,9 @@ What is measured, per scene, engine and batch size (1 and 256 in the full run):
 rigid_env's contact solve assembles dense matrices over every contact slot of the scene (3 rows
 per slot, 4 slots per box pair and 4 per box on the ground; no broad phase yet): the compiled
 step solves one batch element at a time and holds about ``COMPILED_COPIES`` (3c)² float64
-matrices while it does, beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and
-element); the numpy step holds about ``CONTACT_COPIES`` per batch element. A run that would
+matrices while it does, over the contacts within reach (at most ``NEIGHBOURS`` box pairs per
+box), beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and element); the numpy
+step holds about ``CONTACT_COPIES`` per batch element over every slot. A run that would
 need more than half the available memory is not made; for the heap (24960 rows at 64 boxes,
 ~5 GB per matrix) that leaves the steps before the lowest box can reach the ground
 (``free_steps``), which are timed and marked "in flight only".
@@ -58,6 +59,7 @@ from . import peers, report
 PROG = "python -m rigid_env.bench.many_bodies"
 COMMAND = "many_bodies"
 DT = 1 / 240
+ENGINE = "rigid_env"
 GRAVITY = 9.81
 HALF = 0.1  # m, half extent of every box
 MASS = 1.0  # kg
@@ -70,8 +72,9 @@ CONTACT_COPIES = 10  # (3c)² matrices alive in a numpy contact step (measured ~
 # The compiled solve's scratch: the Delassus matrix and the active-set start's system and its
 # factorisation (``compiled.contact_solve``, ``contact_starts``), one element at a time.
 COMPILED_COPIES = 5
+NEIGHBOURS = 26  # boxes of equal size that one box can touch at once (a 3 × 3 × 3 block's)
+GROUND_SLOTS = PAIR_SLOTS = 4  # a box's on the ground (its K lowest corners), a box pair's
 MEMORY_SHARE = 0.5  # of the available memory, at most, for one rigid_env run
-ENGINE = "rigid_env numpy"
 
 
 @dataclass(frozen=True)
@@ -184,7 +187,11 @@ def contact_bytes(scene: sim.Scene, batch: int) -> float:
     rows = contact_rows(scene)
     if scene.backend == "numpy":
         return CONTACT_COPIES * rows**2 * 8.0 * batch
-    return COMPILED_COPIES * rows**2 * 8.0 + batch * rows / 3 * CONTACT_WIDTH * 8.0
+    # The compiled solve's rows: the ground slots and those of the pairs within reach, at most
+    # NEIGHBOURS per box (``compiled.contact_solve``), SLOTS each.
+    n = scene.model.n_bodies
+    live = 3 * min(rows // 3, n * GROUND_SLOTS + n * NEIGHBOURS // 2 * PAIR_SLOTS)
+    return COMPILED_COPIES * live**2 * 8.0 + batch * rows / 3 * CONTACT_WIDTH * 8.0
 
 
 def limit_blas_threads(threads: int = 1) -> str:
@@ -220,7 +227,7 @@ def rigid_run(name: str, batch: int, steps: int, budget_s: float, drift: bool) -
     """rigid_env on ``name`` at ``batch``: ``steps`` steps, or fewer once they took ``budget_s``,
     and the rest drift over them if ``drift``; or why it was not run."""
     scene = rigid_scene(body_count(name))
-    rec: dict[str, Any] = {"engine": ENGINE, "batch": batch}
+    rec: dict[str, Any] = {"engine": ENGINE, "backend": scene.backend, "batch": batch}
     rec["window"] = "rest" if resting(name) else "drop"
     need = contact_bytes(scene, batch)
     allowed = MEMORY_SHARE * resources.available_memory()
@@ -353,6 +360,7 @@ COLUMNS = [
     ("scene", "scene", ""),
     ("bodies", "bodies", "d"),
     ("engine", "engine", ""),
+    ("backend", "backend", ""),
     ("batch", "batch", "d"),
     ("steps timed", "steps_timed", "d"),
     ("µs/step", "us_per_step", ".4g"),

@@ -1,10 +1,10 @@
-"""Ground contact rows, mirroring ``contacts.assembly`` for scenes whose contacts are all
-ground contacts (no body–body pairs), and the data every contact kernel shares.
+"""Contact rows, mirroring ``contacts.assembly``, and the data every contact kernel shares.
 
-Per contact slot (``layout``): ``JT``, the three rows of J̃ = J M^(-1/2) (normal +z, t₁ along
-the sliding, t₂ = n × t₁) over the 6 coordinates of its body, ``T1``; the Delassus matrix
-A = J̃ J̃ᵀ couples only contacts of one body (its other entries are the exact zeros numpy's
-product gives). Contact velocities are J u = b·v + (r × b)·ω per row, the same quantity as
+Per contact slot (``layout``): ``JT``, the three rows of J̃ = J M^(-1/2) (normal, t₁ along the
+sliding, t₂ = n × t₁) over the 6 coordinates of its body a, ``T1``; a body–body contact also
+``JT_B``, body b's rows, negated (``assemble_pair``). A ground contact's normal is +z. The
+Delassus matrix A = J̃ J̃ᵀ couples contacts that share a body (its other entries are the exact
+zeros numpy's product gives). Contact velocities are J u = b·v + (r × b)·ω per row, the same quantity as
 numpy's J̃ (M^(1/2) u) to rounding. ``assemble`` also decides whether the element is engaged
 (``ENGAGED``): a contact within reach of the step's velocities; the later contact kernels skip
 an element that is not, as numpy's stages skip it.
@@ -57,7 +57,8 @@ O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
 # bodies, per group of pairs of one kind (``GROUP_COLUMNS``), and the groups' shape tables.
 O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS = 13, 14, 15, 16  # in ints
 O_SHAPES = 17  # in floats
-N_BLOCKS = 18
+O_SPIN = 18  # in floats: per body ‖L‖₂ = 1/√(its least principal moment) (``contact_solve``)
+N_BLOCKS = 19
 INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS)
 # A group's row: its kind (``contact_pairs.KINDS``), pairs, slots per pair, first pair, first
 # contact slot, and where its shape table starts in the ``O_SHAPES`` block.
@@ -138,6 +139,7 @@ def _contact_data(scene) -> tuple | None:
         O_PAIR_B: pair_b,
         O_GROUPS: groups.reshape(-1),
         O_SHAPES: shapes,
+        O_SPIN: np.linalg.norm(lay.root_inv_inertia, 2, axis=(-2, -1)),
     }
     starts = np.zeros(N_BLOCKS, dtype=np.int64)
     int_parts = [np.asarray(head, np.int64), starts]
@@ -224,6 +226,7 @@ def offsets(ints):
         ints[s + 15],
         ints[s + 16],
         ints[s + 17],
+        ints[s + 18],
     )
 
 
@@ -387,20 +390,22 @@ def _rows_dot(cs, i, col_i, r, j, col_j, s):
 
 
 @njit(cache=True, error_model="numpy")
-def delassus(cs, owner, owner_b, rows, a):
-    """A = J̃ J̃ᵀ (rows·C, rows·C) over the first ``rows`` rows of each contact (3: all,
-    1: the normal block A_nn). Two contacts couple through each body they share (a ground
-    contact has one body, ``owner_b`` −1), summed in the bodies' order as numpy's product."""
-    c = owner.shape[0]
+def delassus(cs, owner, owner_b, slots, rows, a):
+    """A = J̃ J̃ᵀ (rows·m, rows·m) of the contacts ``slots`` (m,) over the first ``rows`` rows
+    of each (3: all, 1: the normal block A_nn). Two contacts couple through each body they
+    share (a ground contact has one body, ``owner_b`` −1), summed in the bodies' order as
+    numpy's product."""
     # The lower triangle, mirrored: entry (q, p) is the same products summed in the same order.
-    for i in range(c):
+    for si in range(slots.shape[0]):
+        i = slots[si]
         ai, bi = owner[i], owner_b[i]
         for r in range(rows):
-            p = rows * i + r
-            for j in range(i + 1):
+            p = rows * si + r
+            for sj in range(si + 1):
+                j = slots[sj]
                 aj, bj = owner[j], owner_b[j]
                 for s in range(rows):
-                    q = rows * j + s
+                    q = rows * sj + s
                     if q > p:
                         break
                     acc = 0.0

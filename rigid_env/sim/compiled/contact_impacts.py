@@ -137,7 +137,7 @@ def restitute(e, st, d):
             for i in range(c):
                 g = cs[i, PATH_GAP]
                 goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
-            delassus(cs, owner, owner_b, 1, a_nn)  # A_nn: the rows do not move (ground contacts)
+            delassus(cs, owner, owner_b, np.arange(c), 1, a_nn)  # A_nn: the rows do not move
             held = True
             if not _event(
                 st,

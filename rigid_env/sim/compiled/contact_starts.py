@@ -29,11 +29,13 @@ def particle_start(short, mass, shaped, k, lam, rows):
 
 
 @njit(cache=True, error_model="numpy")
-def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam, shortfall):
+def active_set_start(short, a, free, reachable, extra, mu, lam, shortfall):
     """``warm_start.active_set_start`` for one element: ``lam`` (3C,) ← the start; ``free``
     (3C,) the free contact velocities (its tangent rows are the slip), A (3C, 3C);
     ``shortfall`` the largest |short| of the slots that hold a contact point, of which the
-    push test's tolerance is a share (``solve.contact_scales``)."""
+    push test's tolerance is a share (``solve.contact_scales``). Returns whether the set
+    settled: an unsettled set's equality solution is no LCP solution, and the caller starts
+    from the ground particle start instead (``particle_start``)."""
     c = short.shape[0]
     size = 3 * c
     # Scratch in three allocations (each costs ~0.05 µs; this runs on most contact steps).
@@ -166,8 +168,4 @@ def active_set_start(short, a, free, reachable, extra, mu, mass, shaped, k, lam,
                 bound[i] = True
             on[i] = nxt[i]
             bound[i] = bound[i] and (on[i] or budget[i])
-    if not settled:
-        # An unsettled set's equality solution is no LCP solution: the particle start.
-        for i in range(size):
-            lam[i] = 0.0
-        particle_start(short, mass, shaped, k, lam, 3)
+    return settled

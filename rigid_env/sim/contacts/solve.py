@@ -233,9 +233,8 @@ def contact_scales(free, target, short, gap):
     projection) and stayed at rest; a 3-2 pyramid has two (the outer bottom box and the far
     box above it) and moved too. Such a slot's target stays in the problem (it keeps the
     slot's impulse at 0); only the scales leave it out (``assembly.FAR_GAP``, as
-    ``pair_apart`` tells those slots). Scenes without such slots are unchanged, among them
-    every scene of the compiled kernels (ground contacts only), whose ``velocity_scale`` is
-    this rule."""
+    ``pair_apart`` tells those slots). Scenes without such slots are unchanged. The compiled
+    solve applies the same rule (``compiled.contact_solve``)."""
     contact = gap < FAR_GAP
     scale = velocity_scale(free, np.where(contact, target, -np.inf))
     shortfall = np.max(np.abs(np.where(contact, short, 0.0)), axis=-1)
