@@ -13,7 +13,7 @@ Scenes of 1 kg cubes (half extent 0.1 m, friction 0.5, restitution 0, gravity âˆ
 What is measured, per scene, engine and batch size (1 and 256 in the full run):
 
 - the wall time per step and per body-step (Âµs). rigid_env batches over a leading axis (one
-  ``Scene.step`` call for the whole batch; these scenes, without restitution, step compiled);
+  ``Scene.step`` call for the whole batch; these scenes step compiled);
   its runs stop after a fixed number of steps or a time budget, whichever comes first, and say
   how many steps they timed (the first step of a run is left out when there are others). MuJoCo has no batch axis: a batch is that
   many ``MjData``, each stepped by one ``mj_step(..., nstep)`` call after the other, one

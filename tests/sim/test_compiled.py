@@ -414,4 +414,7 @@ def test_contact_data_blocks_start_where_the_kernels_read_them():
     assert o[ca.O_L] - o[ca.O_RIM] == n and o[ca.O_LINV] - o[ca.O_L] == 9 * n
     assert floats[ca.F_DT] == 0.01
     np.testing.assert_array_equal(floats[ca.F_GRAVITY : ca.F_GRAVITY + 3], (0.0, 0.0, -9.81))
-    assert len(floats) - o[ca.O_SPRINGS] == ca.spring_table(scene.model).size
+    assert o[ca.O_SHAPES] - o[ca.O_SPRINGS] == ca.spring_table(scene.model).size
+    np.testing.assert_array_equal(ints[o[ca.O_OWNER_B] : o[ca.O_OWNER_B] + c], lay.b)
+    np.testing.assert_array_equal(floats[o[ca.O_SPIN] : o[ca.O_SPIN] + n], lay.spin)
+    assert o[ca.O_SPIN] + n == len(floats)  # the last float block

@@ -47,11 +47,11 @@ point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a fl
 columns from ``SOLVER`` on belong to the contact solve and restitution (``contact_*.py``: the
 rows of J̃, the tangent, the gap after the impacts, their impulse, a body's velocities after the
 velocity update and its orientation along the impacts' path; see ``layout.py``). Scenes with a
-ground run their contact stages compiled, with body–body contacts too when none of them has
-restitution (``contact_pairs.py``: detection by ``pairs.py``'s kernels, the one implementation
-of sphere–sphere, sphere–box and box–box detection, then one solve over every contact of the
-element); a body–body impact in time order, with the pairs' rows moved to its instant, is
-numpy's only, so those scenes step with numpy, as do body–body scenes without a ground. Ground
+ground run their contact stages compiled, body–body contacts included (``contact_pairs.py``:
+detection by ``pairs.py``'s kernels, the one implementation of sphere–sphere, sphere–box and
+box–box detection; then every contact of the element takes part in each impact, with the
+pairs' rows moved to its instant, and in one solve). Body–body scenes without a ground step
+with numpy: a body's path through the impacts is kept in its first ground slot. Ground
 slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
 at the start-of-step pose as numpy does (its order is Gauss–Seidel's visiting order, so both
@@ -94,7 +94,8 @@ stages run between them). Register with ``registry.register_integrator(name, mod
 ``scene.stages``) to a factory ``factory(scene) -> Kernel | tuple[Kernel, ...] | None``;
 ``Kernel`` records the module path and function name of the element kernel, its data tuple,
 whether it is a template, and the contact slots it writes (detection). A factory returns
-``None`` when it cannot run that scene (e.g. body–body impacts): the scene then steps with numpy
+``None`` when it cannot run that scene (e.g. body–body contacts without a ground): the scene
+then steps with numpy
 (``auto``) or refuses (``compiled``). Force terms register likewise (``register_force``) and
 return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_solve.py``) and
 add the module to ``backend.KERNEL_MODULES``.

@@ -16,9 +16,9 @@ import weakref
 
 import numpy as np
 
-from ..contacts.stages import AssembleContacts, CollidePairs, Restitute
-from . import bodies
 from ..contacts.assembly import FAR_GAP
+from ..contacts.stages import AssembleContacts, Restitute
+from . import bodies
 from .cache import njit
 from .forces import spring_table
 from .ground import ground_data
@@ -26,6 +26,10 @@ from .layout import (
     ARM,
     ARM_B,
     CONTACT,
+    DETECTED_A,
+    DETECTED_B,
+    DETECTED_NORMAL,
+    DISPLACEMENT,
     ENGAGED,
     GAP,
     JT,
@@ -58,8 +62,9 @@ O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
 O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS = 13, 14, 15, 16  # in ints
 O_SHAPES = 17  # in floats
 O_SPIN = 18  # in floats: per body ‖L‖₂ = 1/√(its least principal moment) (``contact_solve``)
-N_BLOCKS = 19
-INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS)
+O_ROUND = 19  # in ints: per contact, 1 for a sphere–sphere contact (``Rows.moved``)
+N_BLOCKS = 20
+INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS, O_ROUND)
 # A group's row: its kind (``contact_pairs.KINDS``), pairs, slots per pair, first pair, first
 # contact slot, and where its shape table starts in the ``O_SHAPES`` block.
 G_KIND, G_PAIRS, G_SLOTS, G_FIRST_PAIR, G_FIRST_SLOT, G_SHAPES, GROUP_WIDTH = range(7)
@@ -73,9 +78,9 @@ _BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def contact_data(scene) -> tuple | None:
     """The data tuple of the contact kernels, or None when the scene steps with numpy: no
-    ground contacts, or body–body contacts with restitution (their impacts, ``restitution``,
-    are numpy's only). Built once per scene: every contact kernel's factory asks (and each
-    parameter row's scene, ``sim.parameters``)."""
+    ground contacts (a body's path through the step's impacts is kept in its first ground
+    slot, ``layout.PATH_Q``, and its velocities after the velocity update, ``U1``). Built once per scene: every contact kernel's factory asks (and
+    each parameter row's scene, ``sim.parameters``)."""
     if scene not in _BUILT:
         _BUILT[scene] = _contact_data(scene)
     return _BUILT[scene]
@@ -87,7 +92,7 @@ def _contact_data(scene) -> tuple | None:
         return None
     lay = stages[AssembleContacts].layout
     settings = stages[Restitute].settings
-    if lay.n_ground == 0 or (lay.pairs is not None and np.any(lay.eps > 0)):
+    if lay.n_ground == 0:
         return None
     model = scene.model
     ground = ground_data(model.bodies)
@@ -139,7 +144,8 @@ def _contact_data(scene) -> tuple | None:
         O_PAIR_B: pair_b,
         O_GROUPS: groups.reshape(-1),
         O_SHAPES: shapes,
-        O_SPIN: np.linalg.norm(lay.root_inv_inertia, 2, axis=(-2, -1)),
+        O_SPIN: lay.spin,
+        O_ROUND: np.concatenate([np.zeros(lay.n_ground, np.int64), lay.round_pairs]),
     }
     starts = np.zeros(N_BLOCKS, dtype=np.int64)
     int_parts = [np.asarray(head, np.int64), starts]
@@ -227,6 +233,7 @@ def offsets(ints):
         ints[s + 16],
         ints[s + 17],
         ints[s + 18],
+        ints[s + 19],
     )
 
 
@@ -512,23 +519,64 @@ def tangent(n, rel):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def assemble_pair(e, st, floats, o, i, a, b):
-    """``assembly.assemble`` for body–body slot i between bodies a and b: both take the
-    impulse at the midpoint of the two features (p_a − p_b = gap n: no impulse has a net
-    moment), so ``ARM`` and ``ARM_B`` become the arms to it; t₁ follows the relative sliding
-    there; body a's rows of J̃ go to ``JT``, body b's, negated, to ``JT_B``."""
-    contact, v, w = st[CONTACT], st[V], st[W]
-    normal = vec(contact, e, i, NORMAL)
+def norm(v):
+    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+@njit(cache=True, error_model="numpy")
+def assemble_pair(e, st, floats, o, i, a, b, u, moved, round_pair):
+    """``assembly.assemble`` for body–body slot i between bodies a and b, from what the
+    detection found (``DETECTED_*``, ``GAP``): both take the impulse at the midpoint of the two
+    features (p_a − p_b = gap n: no impulse has a net moment), so ``ARM`` and ``ARM_B`` become
+    the arms to it; t₁ follows the relative sliding there at velocities u (n, 6); body a's rows
+    of J̃ go to ``JT``, body b's, negated, to ``JT_B``. ``moved``: the rows at an impact part-way
+    through the step (``Rows.moved``), the bodies translated by ``DISPLACEMENT`` since: the
+    points move apart by the relative translation, and a sphere–sphere contact (``round_pair``)
+    takes the line of the centres there as its normal, its arms along it."""
+    contact = st[CONTACT]
+    n0 = vec(contact, e, i, DETECTED_NORMAL)
     gap = contact[e, i, GAP]
-    apart = gap if gap < FAR_GAP else 0.0  # (a slot with no contact point stays unshifted)
-    arms = (vec(contact, e, i, ARM), vec(contact, e, i, ARM_B))
-    for side in range(2):
-        sign = -0.5 if side == 0 else 0.5
-        col = ARM if side == 0 else ARM_B
-        for j in range(3):
-            contact[e, i, col + j] = arms[side][j] + sign * (apart * normal[j])
+    raw_a, raw_b = vec(contact, e, i, DETECTED_A), vec(contact, e, i, DETECTED_B)
+    along = gap if gap < FAR_GAP else 0.0  # (a slot with no contact point stays unshifted)
+    normal = n0
+    apart = (along * n0[0], along * n0[1], along * n0[2])
+    if moved:
+        disp = st[DISPLACEMENT]
+        rel = (
+            disp[e, a, 0] - disp[e, b, 0],
+            disp[e, a, 1] - disp[e, b, 1],
+            disp[e, a, 2] - disp[e, b, 2],
+        )
+        if round_pair:
+            ra, rb = norm(raw_a), norm(raw_b)
+            reach = ra + rb + gap
+            centres = (reach * n0[0] + rel[0], reach * n0[1] + rel[1], reach * n0[2] + rel[2])
+            dist = norm(centres)
+            if dist > 1e-12:
+                normal = (centres[0] / dist, centres[1] / dist, centres[2] / dist)
+            raw_a = (-ra * normal[0], -ra * normal[1], -ra * normal[2])
+            raw_b = (rb * normal[0], rb * normal[1], rb * normal[2])
+            left = dist - ra - rb
+            apart = (left * normal[0], left * normal[1], left * normal[2])
+        else:
+            apart = (
+                (apart[0] + disp[e, a, 0]) - disp[e, b, 0],
+                (apart[1] + disp[e, a, 1]) - disp[e, b, 1],
+                (apart[2] + disp[e, a, 2]) - disp[e, b, 2],
+            )
+    for j in range(3):
+        contact[e, i, NORMAL + j] = normal[j]
+        contact[e, i, ARM + j] = raw_a[j] + -0.5 * apart[j]
+        contact[e, i, ARM_B + j] = raw_b[j] + 0.5 * apart[j]
     arm_a, arm_b = vec(contact, e, i, ARM), vec(contact, e, i, ARM_B)
-    t1 = tangent(normal, relative_velocity(v, w, e, a, b, arm_a, arm_b))
+    spin_a = cross((u[a, 3], u[a, 4], u[a, 5]), arm_a)
+    spin_b = cross((u[b, 3], u[b, 4], u[b, 5]), arm_b)
+    rel_v = (
+        (u[a, 0] + spin_a[0]) - (u[b, 0] + spin_b[0]),
+        (u[a, 1] + spin_a[1]) - (u[b, 1] + spin_b[1]),
+        (u[a, 2] + spin_a[2]) - (u[b, 2] + spin_b[2]),
+    )
+    t1 = tangent(normal, rel_v)
     for j in range(3):
         contact[e, i, T1 + j] = t1[j]
     for side in range(2):
@@ -545,7 +593,28 @@ def assemble_pair(e, st, floats, o, i, a, b):
             for j in range(3):
                 contact[e, i, col + 6 * r + j] = sign * (basis[j] * rim)
                 contact[e, i, col + 6 * r + 3 + j] = sign * ang[j]
-    contact[e, i, PATH_GAP] = gap
+    if not moved:
+        contact[e, i, PATH_GAP] = gap
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def detected_velocity(cs, i, a, b, u):
+    """Row 0 of J u by the rows ``assemble`` built from the detection (the impact loop's
+    ``rows.velocity``, which the rows moved to an impact do not replace)."""
+    n0 = (cs[i, DETECTED_NORMAL], cs[i, DETECTED_NORMAL + 1], cs[i, DETECTED_NORMAL + 2])
+    gap = cs[i, GAP]
+    along = gap if gap < FAR_GAP else 0.0
+    arm_a = (
+        cs[i, DETECTED_A] + -0.5 * (along * n0[0]),
+        cs[i, DETECTED_A + 1] + -0.5 * (along * n0[1]),
+        cs[i, DETECTED_A + 2] + -0.5 * (along * n0[2]),
+    )
+    arm_b = (
+        cs[i, DETECTED_B] + 0.5 * (along * n0[0]),
+        cs[i, DETECTED_B + 1] + 0.5 * (along * n0[1]),
+        cs[i, DETECTED_B + 2] + 0.5 * (along * n0[2]),
+    )
+    return point_velocity(n0, arm_a, u, a) - point_velocity(n0, arm_b, u, b)
 
 
 # --- the stage -------------------------------------------------------------------------------
@@ -573,8 +642,15 @@ def assemble(e, st, d):
             engaged = True
     for i in range(n_ground, c):  # body–body: the relative velocity at the detected points
         normal = vec(contact, e, i, NORMAL)
-        rel = relative_velocity(v, w, e, ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i],
-                                vec(contact, e, i, ARM), vec(contact, e, i, ARM_B))
+        rel = relative_velocity(
+            v,
+            w,
+            e,
+            ints[o[O_OWNER] + i],
+            ints[o[O_OWNER_B] + i],
+            vec(contact, e, i, ARM),
+            vec(contact, e, i, ARM_B),
+        )
         vn = rel[0] * normal[0] + rel[1] * normal[1] + rel[2] * normal[2]
         if contact[e, i, GAP] + dt * min(vn, 0.0) < 0:
             engaged = True
@@ -586,8 +662,12 @@ def assemble(e, st, d):
             for i in range(3):
                 contact[e, g * k, U1 + i] = v[e, b, i]
                 contact[e, g * k, U1 + 3 + i] = w[e, b, i]
-        for i in range(n_ground, c):
-            assemble_pair(e, st, floats, o, i, ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i])
+        if c > n_ground:
+            u = np.empty((ints[I_N], 6))
+            load_velocities(st, e, u)
+            for i in range(n_ground, c):
+                a, b = ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i]
+                assemble_pair(e, st, floats, o, i, a, b, u, False, False)
         for i in range(n_ground):
             b = ints[o[O_OWNER] + i]
             arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])

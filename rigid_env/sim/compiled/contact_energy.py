@@ -37,6 +37,7 @@ from .contact_assembly import (
     offsets,
     tuple9,
 )
+from .contact_pairs import pair_pushes
 from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_K, S_REST, SPRING_WIDTH
 from .layout import (
     CONTACT,
@@ -61,7 +62,6 @@ from .layout import (
     W,
     X,
 )
-from .contact_pairs import pair_pushes
 from .registry import Kernel, register
 from .rotation import (
     cross,

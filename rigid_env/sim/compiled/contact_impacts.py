@@ -1,5 +1,11 @@
 """Impacts of one element in time order, mirroring ``contacts.restitution.resolve_impacts``
-(ground contacts; see there for the event rule, the step-mean targets and the path).
+(see there for the event rule, the step-mean targets and the path).
+
+Every contact of the element, on the ground and between bodies, takes part in every event.
+The impact loop reads the normal velocities by the rows of the detection; each event's
+impulses act through the pairs' rows moved to where the bodies are at its instant
+(``contact_assembly.assemble_pair``), and a sphere pair's gap, normal velocity and closing time
+come from its line of centres there (``round_closing``), as numpy's ``Rows.moved``.
 
 The path's translation accumulates in the step tuple's ``DISPLACEMENT`` (per body, zero at the
 start); ``limit_energy`` turns it into the position update's displacement (``Path.displacement``).
@@ -18,18 +24,24 @@ from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
     I_C,
+    I_GROUND,
+    I_GROUPS,
     I_K,
     I_MAX_IMPACTS,
     I_MAX_ITERATIONS,
     O_EPS,
     O_OWNER,
+    O_ROUND,
     O_THRESHOLD,
     add_impulses,
+    assemble_pair,
     block,
     contact_data,
     contact_velocity,
     delassus,
+    detected_velocity,
     load_velocities,
+    norm,
     offsets,
     scaled_velocity,
     store_velocities,
@@ -40,9 +52,13 @@ from .layout import (
     ARM,
     CAPPED,
     CONTACT,
+    DETECTED_A,
+    DETECTED_B,
+    DETECTED_NORMAL,
     DISPLACEMENT,
     ELAPSED,
     ENGAGED,
+    GAP,
     IMPACTS,
     IMPULSE,
     PATH_GAP,
@@ -64,7 +80,8 @@ def restitute(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    if not _may_strike(e, st, d):
+    pairs = d[0][I_GROUPS] > 0  # body–body contacts: rows that move with the impacts
+    if not (_may_strike_pairs(e, st, d) if pairs else _may_strike(e, st, d)):
         return
     views = unpack(d)
     ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = views[:11]
@@ -79,7 +96,7 @@ def restitute(e, st, d):
     q = st[Q]
     n = st[0].shape[1]
     # One scratch allocation of floats and one of flags, carved into views.
-    buf = np.empty(30 * n + 6 * c + c * c + WORK_PER_CONTACT * c)
+    buf = np.empty(30 * n + 7 * c + c * c + WORK_PER_CONTACT * c)
     u = block(buf, 0, n, 6)
     u0 = block(buf, 6 * n, n, 6)
     z = block(buf, 12 * n, n, 6)
@@ -92,7 +109,10 @@ def restitute(e, st, d):
     goal = buf[o + 3 * c : o + 4 * c]
     lam = buf[o + 4 * c : o + 5 * c]
     none = buf[o + 5 * c : o + 6 * c]
-    o += 6 * c
+    gaps = buf[o + 6 * c : o + 7 * c]  # each pass's gaps (a sphere pair's: ``round_closing``)
+    o += 7 * c
+    o_round = offsets(ints)[O_ROUND]
+    slots = np.arange(c)
     a_nn = block(buf, o, c, c)
     work = buf[o + c * c :]
     flags = np.zeros(4 * c, np.bool_)
@@ -105,8 +125,8 @@ def restitute(e, st, d):
             u0[b, 3 + j] = st[W0][e, b, j]
     load_velocities(st, e, u)
     for i in range(c):  # s: the normal part of half the step's non-contact velocity change
-        vn0 = contact_velocity(cs, i, owner[i], owner_b[i], u0, 0)
-        vn1 = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
+        vn0 = normal_speed(cs, i, owner[i], owner_b[i], u0)
+        vn1 = normal_speed(cs, i, owner[i], owner_b[i], u)
         half[i] = 0.5 * (vn1 - vn0)
     k = ints[I_K]
     for g in range(shaped.shape[0]):  # the path's orientation starts at the working q
@@ -118,15 +138,11 @@ def restitute(e, st, d):
     for _ in range(max_impacts + 2):
         first = math.inf
         for i in range(c):
-            vn[i] = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
-            g = cs[i, PATH_GAP]
-            close = max(g, 0.0) / (-vn[i] if vn[i] < 0 else 1.0)  # time to close
+            round_pair = pairs and ints[o_round + i] != 0
+            g, vn[i], close = closing(cs, i, owner[i], owner_b[i], u, disp, e, round_pair)
+            gaps[i] = g
             at = min(elapsed + close, dt)
-            # impact_targets: instantaneous velocity at the closing, Newton's law on it.
-            rate = 2.0 * half[i] / dt
-            w = vn[i] + rate * (at - 0.5 * dt)
-            speed = max(-w, 0.0)
-            goal[i] = eps[i] * speed + rate * (0.5 * dt - at)
+            speed, goal[i] = impact_target(vn[i], half[i], at, eps[i], dt)
             eligible[i] = eps[i] > 0 and vn[i] < 0 and speed > thr[i] and not struck[i]
             tau[i] = close if eligible[i] else math.inf
             first = min(first, tau[i])
@@ -135,9 +151,9 @@ def restitute(e, st, d):
         if not held:
             # The supports: the contacts that are no impact hold from the step's start.
             for i in range(c):
-                g = cs[i, PATH_GAP]
+                g = gaps[i]
                 goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
-            delassus(cs, owner, owner_b, np.arange(c), 1, a_nn)  # A_nn: the rows do not move
+            delassus(cs, owner, owner_b, slots, 1, a_nn)  # the rows of the detection
             held = True
             if not _event(
                 st,
@@ -168,8 +184,8 @@ def restitute(e, st, d):
             # acceleration is the one the supports leave (restitution.resolve_impacts).
             for i in range(c):
                 loaded[i] = cs[i, IMPULSE] > 0.0 and not eligible[i]
-                vn1 = contact_velocity(cs, i, owner[i], owner_b[i], u, 0)
-                half[i] = 0.5 * (vn1 - contact_velocity(cs, i, owner[i], owner_b[i], u0, 0))
+                vn1 = normal_speed(cs, i, owner[i], owner_b[i], u)
+                half[i] = 0.5 * (vn1 - normal_speed(cs, i, owner[i], owner_b[i], u0))
             continue
         if events >= max_impacts:
             report[e, CAPPED] = 1.0
@@ -189,15 +205,29 @@ def restitute(e, st, d):
             qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
             for j in range(4):
                 p[j] = qb[j]
-        # Contacts closing together, and the other contacts of their bodies closing within
-        # one step of the event, are struck together.
+        if pairs:
+            # A sphere pair's gap, normal velocity and target at the touch, exactly; then
+            # every pair's rows where the bodies are now (``Rows.moved``).
+            for i in range(c):
+                if ints[o_round + i] != 0:
+                    g, vn[i], close = round_closing(cs, i, owner[i], owner_b[i], u, disp, e)
+                    cs[i, PATH_GAP] = g
+                    goal[i] = impact_target(vn[i], half[i], min(elapsed + close, dt), eps[i], dt)[1]
+            for i in range(ints[I_GROUND] * k, c):
+                round_pair = ints[o_round + i] != 0
+                assemble_pair(
+                    e, st, floats, offsets(ints), i, owner[i], owner_b[i], u, True, round_pair
+                )
+            delassus(cs, owner, owner_b, slots, 1, a_nn)
+        # Contacts closing together, and the other contacts of their manifolds (a body on the
+        # ground, a pair of bodies) closing within one step of the event, are struck together.
         for i in range(c):
             hit[i] = eligible[i] and tau[i] <= first * (1 + 1e-9) + 1e-15
         for i in range(c):
             if hit[i] or not eligible[i] or not tau[i] < first + dt:
                 continue
             for j in range(c):
-                if hit[j] and owner[j] == owner[i]:
+                if hit[j] and owner[j] == owner[i] and owner_b[j] == owner_b[i]:
                     hit[i] = True
                     break
         for i in range(c):
@@ -236,6 +266,95 @@ def restitute(e, st, d):
     report[e, ELAPSED] = elapsed
     if held:
         store_velocities(st, e, u)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def impact_target(vn, half, at, eps, dt):
+    """``restitution.impact_targets``: the instantaneous normal velocity at the closing time
+    ``at`` (the step-mean v_n plus the normal acceleration 2·half/Δt from the step's middle)
+    and Newton's law on it; returns (impact speed, the step-mean target)."""
+    rate = 2.0 * half / dt
+    w = vn + rate * (at - 0.5 * dt)
+    speed = max(-w, 0.0)
+    return speed, eps * speed + rate * (0.5 * dt - at)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def normal_speed(cs, i, a, b, u):
+    """Row 0 of J u at slot i by the detection's rows (the impact loop reads them, also after
+    the rows moved to an event)."""
+    if b < 0:
+        return contact_velocity(cs, i, a, b, u, 0)
+    return detected_velocity(cs, i, a, b, u)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def closing(cs, i, a, b, u, disp, e, round_pair):
+    """(gap, normal velocity, time to close) of slot i at velocities u along the path."""
+    if round_pair:
+        return round_closing(cs, i, a, b, u, disp, e)
+    vn = normal_speed(cs, i, a, b, u)
+    g = cs[i, PATH_GAP]
+    return g, vn, max(g, 0.0) / (-vn if vn < 0 else 1.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def round_closing(cs, i, a, b, u, disp, e):
+    """``restitution.round_closing`` for sphere pair slot i: the centres' offset
+    d = (ra + rb + gap₀) n₀ + Δshift moves at the centres' relative velocity w, and the spheres
+    touch when |d + τ w| = ra + rb (the smaller root, in the form without cancellation).
+    Returns (gap, normal velocity, time to close; ∞ for a miss or moving apart)."""
+    n0 = (cs[i, DETECTED_NORMAL], cs[i, DETECTED_NORMAL + 1], cs[i, DETECTED_NORMAL + 2])
+    ra = norm((cs[i, DETECTED_A], cs[i, DETECTED_A + 1], cs[i, DETECTED_A + 2]))
+    rb = norm((cs[i, DETECTED_B], cs[i, DETECTED_B + 1], cs[i, DETECTED_B + 2]))
+    radius = ra + rb
+    reach = radius + cs[i, GAP]
+    d = (
+        (reach * n0[0] + disp[e, a, 0]) - disp[e, b, 0],
+        (reach * n0[1] + disp[e, a, 1]) - disp[e, b, 1],
+        (reach * n0[2] + disp[e, a, 2]) - disp[e, b, 2],
+    )
+    w = (u[a, 0] - u[b, 0], u[a, 1] - u[b, 1], u[a, 2] - u[b, 2])
+    dist = norm(d)
+    gap = dist - radius
+    dw = d[0] * w[0] + d[1] * w[1] + d[2] * w[2]
+    vn = dw / (dist if dist > 1e-12 else 1.0)
+    qa = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    qb = 2.0 * dw
+    qc = dist * dist - radius * radius
+    disc = qb * qb - 4.0 * qa * qc
+    if not (qb < 0 and disc >= 0):  # moving apart, or the line passes beyond the radii
+        return gap, vn, math.inf
+    root = 2.0 * max(qc, 0.0) / (-qb + np.sqrt(max(disc, 0.0)))
+    return gap, vn, root if gap > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _may_strike_pairs(e, st, d):
+    """``_may_strike`` of a scene with body–body contacts: the loop's first pass, on the
+    velocities loaded as the loop loads them."""
+    views = unpack(d)
+    ints, floats, eps, thr, owner = views[0], views[1], views[3], views[4], views[5]
+    owner_b = views[15]
+    o_round = offsets(ints)[O_ROUND]
+    dt = floats[F_DT]
+    cs = st[CONTACT][e]
+    n = st[0].shape[1]
+    u0, u = np.empty((n, 6)), np.empty((n, 6))
+    for b in range(n):
+        for j in range(3):
+            u0[b, j] = st[V0][e, b, j]
+            u0[b, 3 + j] = st[W0][e, b, j]
+    load_velocities(st, e, u)
+    disp = st[DISPLACEMENT]
+    for i in range(owner.shape[0]):
+        a, b = owner[i], owner_b[i]
+        half = 0.5 * (normal_speed(cs, i, a, b, u) - normal_speed(cs, i, a, b, u0))
+        g, vn, close = closing(cs, i, a, b, u, disp, e, ints[o_round + i] != 0)
+        speed = impact_target(vn, half, min(close, dt), eps[i], dt)[0]
+        if eps[i] > 0 and vn < 0 and speed > thr[i] and not close >= dt:
+            return True
+    return False
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -360,9 +360,7 @@ def converge(
             before = sweep_change(a, work, size)
             for k in range(size):
                 work[saved + k] = lam[k]
-            steps += newton(
-                a, free, target, mu, lam, extra, newton_steps - steps, tolerance, scale
-            )
+            steps += newton(a, free, target, mu, lam, extra, newton_steps - steps, tolerance, scale)
             more, done = gauss_seidel(
                 a,
                 free,

@@ -34,7 +34,20 @@ from .contact_assembly import (
     contact_data,
     offsets,
 )
-from .layout import ARM, ARM_B, BODY, CONTACT, CONTACT_WIDTH, GAP, NORMAL, Q, X
+from .layout import (
+    ARM,
+    ARM_B,
+    BODY,
+    CONTACT,
+    CONTACT_WIDTH,
+    DETECTED_A,
+    DETECTED_B,
+    DETECTED_NORMAL,
+    GAP,
+    NORMAL,
+    Q,
+    X,
+)
 from .pairs import box_box, sphere_box, sphere_sphere
 from .registry import Kernel, register
 
@@ -71,14 +84,22 @@ def detect_pairs(ints, floats, o, x, q, arm_a, arm_b, normal, gap):
             for j in range(4):
                 qa[m, j] = q[ia, j]
                 qb[m, j] = q[ib, j]
-        out_a, out_b, out_n = np.empty((p, slots, 3)), np.empty((p, slots, 3)), np.empty((p, slots, 3))
+        out_a, out_b, out_n = (
+            np.empty((p, slots, 3)),
+            np.empty((p, slots, 3)),
+            np.empty((p, slots, 3)),
+        )
         out_gap = np.empty((p, slots))
         if kind == 0:
             ra, rb = floats[at : at + p], floats[at + p : at + 2 * p]
-            sphere_sphere(xa, qa, xb, qb, ra, rb, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0])
+            sphere_sphere(
+                xa, qa, xb, qb, ra, rb, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0]
+            )
         elif kind == 1:
             radius, half = floats[at : at + p], block(floats, at + p, p, 3)
-            sphere_box(xa, qa, xb, qb, radius, half, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0])
+            sphere_box(
+                xa, qa, xb, qb, radius, half, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0]
+            )
         else:
             half_a, half_b = block(floats, at, p, 3), block(floats, at + 3 * p, p, 3)
             margin = floats[at + 6 * p : at + 7 * p]
@@ -106,10 +127,10 @@ def collide(e, st, d):
     contact = st[CONTACT]
     for r in range(rows):
         i = n_ground + r
-        for j in range(3):
-            contact[e, i, ARM + j] = arm_a[r, j]
-            contact[e, i, ARM_B + j] = arm_b[r, j]
-            contact[e, i, NORMAL + j] = normal[r, j]
+        for j in range(3):  # the detection, and the rows' until ``assemble`` builds them
+            contact[e, i, DETECTED_A + j] = contact[e, i, ARM + j] = arm_a[r, j]
+            contact[e, i, DETECTED_B + j] = contact[e, i, ARM_B + j] = arm_b[r, j]
+            contact[e, i, DETECTED_NORMAL + j] = contact[e, i, NORMAL + j] = normal[r, j]
         contact[e, i, GAP] = gap[r]
         contact[e, i, BODY] = ints[o[O_PAIR_A] + pair_of(ints, o, r)]
 

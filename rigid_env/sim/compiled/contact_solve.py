@@ -20,16 +20,19 @@ from .cache import njit
 from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
+    I_GROUND,
     I_GROUPS,
     I_K,
     I_MAX_ITERATIONS,
+    I_N,
     I_NEWTON_AFTER,
     I_NEWTON_STEPS,
     I_PARTICLE,
-    I_N,
     I_WARM,
+    O_ROUND,
     O_SPIN,
     add_impulses,
+    assemble_pair,
     block,
     contact_data,
     contact_velocity,
@@ -149,6 +152,14 @@ def solve(e, st, d):
     z = block(every, 9 * c + 6 * n, n, 6)
     load_velocities(st, e, u)
     remaining = dt - report[e, ELAPSED]
+    if ints[I_GROUPS] > 0 and report[e, ELAPSED] > 0:
+        # The pairs' rows where the impacts left the bodies, t₁ from the velocities after
+        # them (``SolveContacts``: ``Rows.moved``).
+        o_round = o[O_ROUND]
+        for i in range(ints[I_GROUND] * k, c):
+            assemble_pair(
+                e, st, floats, o, i, owner[i], owner_b[i], u, True, ints[o_round + i] != 0
+            )
     for i in range(c):
         for r in range(3):
             free_all[3 * i + r] = contact_velocity(cs, i, owner[i], owner_b[i], u, r)

@@ -41,10 +41,15 @@ CONTACT_COLUMNS = (
     # kept between the steps of one call (``steps.carry`` zeroes the columns before WARM only)
     ("WARM", 3),  # the impulse (n, t₁, t₂) the previous step's solve ended with
     ("WARM_OK", 1),  # in slot 0: 1.0 when that solve converged (``SolverSettings.warm_start``)
-    # a scene with body–body contacts only (``contact_pairs``); ARM is then body a's arm
-    ("NORMAL", 3),  # the contact normal, from body b to body a (a ground slot's is +z)
-    ("ARM_B", 3),  # world vector from body b's centre of mass to its contact point
+    # a scene with body–body contacts only (``contact_pairs``); ARM is then body a's arm to
+    # the point both bodies take the impulse at (the midpoint of the two features)
+    ("NORMAL", 3),  # the rows' normal, from body b to body a (a ground slot's is +z)
+    ("ARM_B", 3),  # world vector from body b's centre of mass to that point
     ("JT_B", 18),  # body b's rows of J̃, negated (it takes the opposite impulse), as ``JT``
+    # what the detection found (the rows' record: ``Rows.moved`` starts from it at an impact)
+    ("DETECTED_A", 3),  # body a's arm
+    ("DETECTED_B", 3),  # body b's arm
+    ("DETECTED_NORMAL", 3),
 )
 (
     ARM,
@@ -61,6 +66,9 @@ CONTACT_COLUMNS = (
     NORMAL,
     ARM_B,
     JT_B,
+    DETECTED_A,
+    DETECTED_B,
+    DETECTED_NORMAL,
     CONTACT_WIDTH,
 ) = columns(CONTACT_COLUMNS)
 GROUND_WIDTH = NORMAL  # the columns of a scene whose contacts are all ground contacts

@@ -80,6 +80,8 @@ class Layout:
         self.root_inv_mass = 1.0 / np.sqrt(model.mass)
         self.root_inv_inertia = np.linalg.cholesky(model.inv_inertia)
         self.root_inertia = np.linalg.inv(self.root_inv_inertia)  # L⁻¹
+        # ‖L‖₂ = 1/√(least principal moment): |ω| ≤ ‖L‖₂ |z_ω| (the compiled solve's reach)
+        self.spin = np.linalg.norm(self.root_inv_inertia, 2, axis=(-2, -1))
         # Projection shares (P, n): pair p moves a by +m_b/(m_a+m_b) of its push, b by −m_a/….
         rows = []
         if pairs is not None:
