@@ -375,7 +375,7 @@ def test_each_packed_column_is_where_its_declaration_puts_it(fields):
     assert [getattr(layout, name) for name, _ in declared] == list(starts[:-1])
     width = "CONTACT_WIDTH" if fields == "CONTACT_COLUMNS" else "REPORT_WIDTH"
     assert getattr(layout, width) == starts[-1] == sum(w for _, w in declared)
-    assert starts[-1] == (66 if fields == "CONTACT_COLUMNS" else 12)
+    assert starts[-1] == (75 if fields == "CONTACT_COLUMNS" else 12)
     if fields == "CONTACT_COLUMNS":  # a ground scene's slots stop before the body–body columns
         assert layout.GROUND_WIDTH == layout.NORMAL == 42
 
@@ -417,4 +417,6 @@ def test_contact_data_blocks_start_where_the_kernels_read_them():
     assert o[ca.O_SHAPES] - o[ca.O_SPRINGS] == ca.spring_table(scene.model).size
     np.testing.assert_array_equal(ints[o[ca.O_OWNER_B] : o[ca.O_OWNER_B] + c], lay.b)
     np.testing.assert_array_equal(floats[o[ca.O_SPIN] : o[ca.O_SPIN] + n], lay.spin)
-    assert o[ca.O_SPIN] + n == len(floats)  # the last float block
+    bounds = [ca.bounding_radius(b.shape) for b in scene.model.bodies]
+    np.testing.assert_array_equal(floats[o[ca.O_BOUND] : o[ca.O_BOUND] + n], bounds)
+    assert o[ca.O_BOUND] + n == len(floats)  # the last float block

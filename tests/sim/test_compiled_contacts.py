@@ -187,16 +187,18 @@ def test_batched_compiled_step_equals_elements_alone_bit_for_bit():
     assert touched_any
 
 
-def test_ground_scenes_compile_and_body_body_scenes_keep_numpy():
+def test_ground_scenes_compile_and_body_body_scenes_without_a_ground_keep_numpy():
     box = sim.Body.box((0.1, 0.1, 0.1), 1.0)
     ground = sim.Ground(0.5, 0.5)
     for body in (box, sim.Body.sphere(0.1, 1.0), tetrahedron()):
         scene = sim.Scene([body, body], DT, gravity=(0, 0, -G), ground=ground, backend="auto")
         assert scene.backend == "compiled"
     pair = sim.Scene([box, box], DT, ground=ground, contacts=sim.Material(), backend="auto")
-    assert pair.backend == "numpy"
+    assert pair.backend == "compiled"
+    space = sim.Scene([box, box], DT, contacts=sim.Material(), backend="auto")
+    assert space.backend == "numpy"
     with pytest.raises(ValueError, match="compiled"):
-        sim.Scene([box, box], DT, ground=ground, contacts=sim.Material(), backend="compiled")
+        sim.Scene([box, box], DT, contacts=sim.Material(), backend="compiled")
 
 
 @pytest.mark.parametrize(

@@ -135,3 +135,58 @@ def test_the_backends_agree_where_the_impulses_are_unique(eps):
     np.testing.assert_allclose(
         results[1].linear_velocity, results[0].linear_velocity, rtol=0, atol=1e-9
     )
+
+
+def test_the_broad_phase_keeps_a_pair_that_closes_within_the_step():
+    """Two spheres on a frictionless ground, 0.3 m apart, one shot at the other at 100 m/s:
+    it covers the gap in 0.003 s, within one step of 1/240 s, so the pair must pass the broad
+    phase (its bounding spheres are farther apart than they touch) and the elastic impact
+    hand the velocity over in that step, as numpy's step, which tests every pair, does."""
+    results = []
+    for backend in ("numpy", "compiled"):
+        scene = sim.Scene(
+            [sim.Body.sphere(radius=0.1, mass=1.0), sim.Body.sphere(radius=0.1, mass=1.0)],
+            dt=DT,
+            gravity=GRAVITY,
+            ground=sim.Ground(0.0, 0.0),
+            contacts=sim.Material(1.0, 0.0),
+            backend=backend,
+        )
+        state = scene.initial_state(
+            position=[(0, 0, 0.1), (0.5, 0, 0.1)], linear_velocity=[(100.0, 0, 0), (0, 0, 0)]
+        )
+        results.append(scene.step(state))
+    assert scene.backend == "compiled"
+    for state in results:
+        np.testing.assert_allclose(state.linear_velocity[:, 0], [0.0, 100.0], atol=1e-9)
+    np.testing.assert_allclose(results[1].position, results[0].position, rtol=0, atol=1e-12)
+
+
+def test_far_pairs_get_no_contact_point_and_near_ones_their_detection():
+    from rigid_env.sim.compiled import contact_assembly as ca
+    from rigid_env.sim.contacts.box_box import FAR
+
+    assert ca.bounding_radius(sim.Body.box(half_extents=(1, 2, 2), mass=1.0).shape) == 3.0
+    cube = sim.Body.box(half_extents=(0.1, 0.1, 0.1), mass=1.0)
+    scene = sim.Scene(
+        [cube, cube, cube],
+        dt=DT,
+        gravity=GRAVITY,
+        ground=sim.Ground(0.0, 0.5),
+        contacts=sim.Material(0.0, 0.5),
+        backend="compiled",
+    )
+    # Boxes 0 and 1 stacked; box 2 a metre away, at rest: pairs (0, 2) and (1, 2) are far.
+    state = scene.initial_state(position=[(0, 0, 0.1), (0, 0, 0.3), (1.0, 0, 0.1)])
+    arrays = [np.ascontiguousarray(a.reshape(1, 3, -1)) for a in state.arrays()]
+    x, q = arrays[0][0], arrays[1][0]
+    ints, floats = ca.contact_data(scene)
+    o = ca.offsets.py_func(ints)
+    rows = 3 * 4
+    out = [np.zeros((rows, 3)) for _ in range(3)]
+    gap = np.zeros(rows)
+    from rigid_env.sim.compiled.contact_pairs import detect_pairs
+
+    detect_pairs(ints, floats, o, x, q, 0.0, DT, *out, gap)
+    np.testing.assert_allclose(gap[:4], 0.0, atol=1e-12)  # (0, 1): face on face, touching
+    assert np.all(gap[4:] == FAR)  # (0, 2), (1, 2): no contact point

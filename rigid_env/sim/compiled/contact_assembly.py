@@ -18,6 +18,7 @@ import numpy as np
 
 from ..contacts.assembly import FAR_GAP
 from ..contacts.stages import AssembleContacts, Restitute
+from ..shapes import Box, Polyhedron, Sphere
 from . import bodies
 from .cache import njit
 from .forces import spring_table
@@ -63,7 +64,8 @@ O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS = 13, 14, 15, 16  # in ints
 O_SHAPES = 17  # in floats
 O_SPIN = 18  # in floats: per body ‖L‖₂ = 1/√(its least principal moment) (``contact_solve``)
 O_ROUND = 19  # in ints: per contact, 1 for a sphere–sphere contact (``Rows.moved``)
-N_BLOCKS = 20
+O_BOUND = 20  # in floats: per body, the radius of its bounding sphere (0 without a shape)
+N_BLOCKS = 21
 INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS, O_ROUND)
 # A group's row: its kind (``contact_pairs.KINDS``), pairs, slots per pair, first pair, first
 # contact slot, and where its shape table starts in the ``O_SHAPES`` block.
@@ -146,6 +148,7 @@ def _contact_data(scene) -> tuple | None:
         O_SHAPES: shapes,
         O_SPIN: lay.spin,
         O_ROUND: np.concatenate([np.zeros(lay.n_ground, np.int64), lay.round_pairs]),
+        O_BOUND: [bounding_radius(b.shape) for b in model.bodies],
     }
     starts = np.zeros(N_BLOCKS, dtype=np.int64)
     int_parts = [np.asarray(head, np.int64), starts]
@@ -158,6 +161,17 @@ def _contact_data(scene) -> tuple | None:
     floats = np.concatenate(float_parts).astype(float)
     # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
     return (ints, floats)
+
+
+def bounding_radius(shape) -> float:
+    """The radius of the smallest sphere about the centre of mass that holds ``shape``."""
+    if isinstance(shape, Sphere):
+        return float(shape.radius)
+    if isinstance(shape, Box):
+        return float(np.sqrt(np.sum(np.square(shape.half_extents))))
+    if isinstance(shape, Polyhedron):
+        return float(np.max(np.sqrt(np.sum(np.square(shape.vertices), axis=-1))))
+    return 0.0
 
 
 def pair_tables(lay) -> tuple:
@@ -234,6 +248,7 @@ def offsets(ints):
         ints[s + 17],
         ints[s + 18],
         ints[s + 19],
+        ints[s + 20],
     )
 
 

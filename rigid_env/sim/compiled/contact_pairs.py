@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..contacts.box_box import FAR
 from .cache import njit
 from .contact_assembly import (
+    F_DT,
     G_FIRST_PAIR,
     G_FIRST_SLOT,
     G_KIND,
@@ -25,14 +27,22 @@ from .contact_assembly import (
     I_GROUND,
     I_GROUPS,
     I_K,
+    I_N,
+    O_BOUND,
     O_GROUPS,
+    O_LINV,
     O_MASS,
     O_PAIR_A,
     O_PAIR_B,
+    O_RIM,
     O_SHAPES,
+    O_SPIN,
     block,
     contact_data,
+    load_velocities,
+    norm,
     offsets,
+    scaled_velocity,
 )
 from .layout import (
     ARM,
@@ -64,66 +74,124 @@ def shape_table(kind: str, params: tuple) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def detect_pairs(ints, floats, o, x, q, arm_a, arm_b, normal, gap):
+def detect_pairs(ints, floats, o, x, q, speed, horizon, arm_a, arm_b, normal, gap):
     """Every pair slot's arms, normal (from b to a) and gap at the element's poses x (n, 3),
-    q (n, 4), into rows 0 … (C − G·K) of the outputs (the pair slots in ``Layout`` order)."""
+    q (n, 4), into rows 0 … (C − G·K) of the outputs (the pair slots in ``Layout`` order).
+
+    The broad phase: a pair whose bounding spheres (``O_BOUND``) stay apart by more than its
+    points can close over ``horizon`` seconds at the bodies' largest speeds (``speed`` = |z|,
+    ``contact_solve.reach_bound``) cannot touch within it, and its slots get no contact point
+    (gap ``box_box.FAR``, normal +z, zero arms) without the narrow phase. ``speed`` 0: only
+    pairs whose bounding spheres overlap are tested (the separation's question)."""
     n_ground = ints[I_GROUND] * ints[I_K]
+    bound, rim = floats[o[O_BOUND] :], floats[o[O_RIM] :]
+    spin = floats[o[O_SPIN] :]
     for g in range(ints[I_GROUPS]):
         row = o[O_GROUPS] + GROUP_WIDTH * g
         kind, p, slots = ints[row + G_KIND], ints[row + G_PAIRS], ints[row + G_SLOTS]
         first = ints[row + G_FIRST_PAIR]
         start = ints[row + G_FIRST_SLOT] - n_ground
         at = o[O_SHAPES] + ints[row + G_SHAPES]
-        xa, xb = np.empty((p, 3)), np.empty((p, 3))
-        qa, qb = np.empty((p, 4)), np.empty((p, 4))
+        kept = np.empty(p, np.int64)
+        count = 0
         for m in range(p):
             ia, ib = ints[o[O_PAIR_A] + first + m], ints[o[O_PAIR_B] + first + m]
+            d = (x[ia, 0] - x[ib, 0], x[ia, 1] - x[ib, 1], x[ia, 2] - x[ib, 2])
+            # the points' closing speed: each body's |v| + |ω| R (``reach_bound``)
+            closing = speed * ((rim[ia] + spin[ia] * bound[ia]) + (rim[ib] + spin[ib] * bound[ib]))
+            if norm(d) <= (bound[ia] + bound[ib]) + horizon * closing * (1.0 + 1e-9):
+                kept[count] = m
+                count += 1
+            else:
+                for s in range(slots):
+                    r = start + m * slots + s
+                    gap[r] = FAR
+                    for j in range(3):
+                        arm_a[r, j] = 0.0
+                        arm_b[r, j] = 0.0
+                        normal[r, j] = 1.0 if j == 2 else 0.0
+        if count == 0:
+            continue
+        xa, xb = np.empty((count, 3)), np.empty((count, 3))
+        qa, qb = np.empty((count, 4)), np.empty((count, 4))
+        width = 2 if kind == 0 else (4 if kind == 1 else 7)  # shape floats per pair
+        table = np.empty(width * count)  # the kept pairs' shape table, laid out as the group's
+        for k in range(count):
+            m = kept[k]
+            ia, ib = ints[o[O_PAIR_A] + first + m], ints[o[O_PAIR_B] + first + m]
             for j in range(3):
-                xa[m, j] = x[ia, j]
-                xb[m, j] = x[ib, j]
+                xa[k, j] = x[ia, j]
+                xb[k, j] = x[ib, j]
             for j in range(4):
-                qa[m, j] = q[ia, j]
-                qb[m, j] = q[ib, j]
+                qa[k, j] = q[ia, j]
+                qb[k, j] = q[ib, j]
+            if kind == 0:  # ra (P), rb (P)
+                table[k] = floats[at + m]
+                table[count + k] = floats[at + p + m]
+            elif kind == 1:  # radius (P), half extents (P, 3)
+                table[k] = floats[at + m]
+                for j in range(3):
+                    table[count + 3 * k + j] = floats[at + p + 3 * m + j]
+            else:  # half extents of a (P, 3) and of b (P, 3), face margin (P)
+                for j in range(3):
+                    table[3 * k + j] = floats[at + 3 * m + j]
+                    table[3 * count + 3 * k + j] = floats[at + 3 * p + 3 * m + j]
+                table[6 * count + k] = floats[at + 6 * p + m]
         out_a, out_b, out_n = (
-            np.empty((p, slots, 3)),
-            np.empty((p, slots, 3)),
-            np.empty((p, slots, 3)),
+            np.empty((count, slots, 3)),
+            np.empty((count, slots, 3)),
+            np.empty((count, slots, 3)),
         )
-        out_gap = np.empty((p, slots))
+        out_gap = np.empty((count, slots))
         if kind == 0:
-            ra, rb = floats[at : at + p], floats[at + p : at + 2 * p]
+            ra, rb = table[:count], table[count : 2 * count]
             sphere_sphere(
                 xa, qa, xb, qb, ra, rb, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0]
             )
         elif kind == 1:
-            radius, half = floats[at : at + p], block(floats, at + p, p, 3)
+            radius, half = table[:count], block(table, count, count, 3)
             sphere_box(
                 xa, qa, xb, qb, radius, half, out_a[:, 0], out_b[:, 0], out_n[:, 0], out_gap[:, 0]
             )
         else:
-            half_a, half_b = block(floats, at, p, 3), block(floats, at + 3 * p, p, 3)
-            margin = floats[at + 6 * p : at + 7 * p]
+            half_a, half_b = block(table, 0, count, 3), block(table, 3 * count, count, 3)
+            margin = table[6 * count : 7 * count]
             box_box(xa, qa, xb, qb, half_a, half_b, margin, out_a, out_b, out_n, out_gap)
-        for m in range(p):
+        for k in range(count):
+            m = kept[k]
             for s in range(slots):
                 r = start + m * slots + s
-                gap[r] = out_gap[m, s]
+                gap[r] = out_gap[k, s]
                 for j in range(3):
-                    arm_a[r, j] = out_a[m, s, j]
-                    arm_b[r, j] = out_b[m, s, j]
-                    normal[r, j] = out_n[m, s, j]
+                    arm_a[r, j] = out_a[k, s, j]
+                    arm_b[r, j] = out_b[k, s, j]
+                    normal[r, j] = out_n[k, s, j]
 
 
 @njit(cache=True, error_model="numpy")
 def collide(e, st, d):
-    """``CollidePairs`` for one element: detection at the working poses (the start's)."""
+    """``CollidePairs`` for one element: detection at the working poses (the start's), the
+    broad phase over the step at the speeds the velocity update left (the contact stages add
+    no kinetic energy, so no pair it passes over can touch or take an impulse this step)."""
     ints, floats = d
     o = offsets(ints)
     n_ground = ints[I_GROUND] * ints[I_K]
     rows = ints[I_C] - n_ground
+    n = ints[I_N]
+    u, z = np.empty((n, 6)), np.empty((n, 6))
+    load_velocities(st, e, u)
+    mass, linv = floats[o[O_MASS] : o[O_MASS] + n], block(floats, o[O_LINV], n, 9)
+    scaled_velocity(st, e, mass, linv, u, z)
+    energy = 0.0
+    for b in range(n):
+        for j in range(6):
+            energy += z[b, j] * z[b, j]
     arm_a, arm_b, normal = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
     gap = np.empty(rows)
-    detect_pairs(ints, floats, o, st[X][e], st[Q][e], arm_a, arm_b, normal, gap)
+    speed = np.sqrt(energy)
+    detect_pairs(
+        ints, floats, o, st[X][e], st[Q][e], speed, floats[F_DT], arm_a, arm_b, normal, gap
+    )
     contact = st[CONTACT]
     for r in range(rows):
         i = n_ground + r
@@ -158,7 +226,7 @@ def pair_pushes(ints, floats, o, x, q, push):
     rows = ints[I_C] - n_ground
     arm_a, arm_b, normal = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((rows, 3))
     gap = np.empty(rows)
-    detect_pairs(ints, floats, o, x, q, arm_a, arm_b, normal, gap)
+    detect_pairs(ints, floats, o, x, q, 0.0, 0.0, arm_a, arm_b, normal, gap)
     push[:] = 0.0
     found = False
     for g in range(ints[I_GROUPS]):
