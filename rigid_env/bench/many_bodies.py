@@ -18,7 +18,8 @@ What is measured, per scene, engine and batch size (1 and 256 in the full run):
   how many steps they timed (the first step of a run is left out when there are others). MuJoCo has no batch axis: a batch is that
   many ``MjData``, each stepped by one ``mj_step(..., nstep)`` call after the other, one
   thread. For the resting scenes the cost is the same every step, so runs of different
-  lengths compare; the heap's is not, so its ratio is given only for the same window.
+  lengths compare; the heap's is not: rigid_env steps it over MuJoCo's steps (within the
+  drift runs' time budget), and the ratio is given only when both timed the same window.
 - the rest drift of the resting scenes: the largest displacement of any box's centre from its
   start over 2 s of simulated time (480 steps, fewer in the quick and tiny presets; the JSON
   says how many), at batch 1. MuJoCo's soft contacts let the boxes sink into each other and
@@ -321,6 +322,8 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
             steps, budget = (
                 (cfg.drift_steps, cfg.drift_budget_s) if drift else (cfg.steps + 1, cfg.budget_s)
             )
+            if not resting(name):  # its cost changes as it falls and piles: MuJoCo's window
+                steps, budget = cfg.mujoco_steps + 1, cfg.drift_budget_s
             runs.append(rigid_run(name, batch, steps, budget, drift))
             if peers.available():
                 if progress:
@@ -332,7 +335,8 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
                     rec["us_per_step"] = 1e6 * rec["s_per_step"]
                     rec["us_per_body_step"] = rec["us_per_step"] / (count * batch)
             ours, peer = runs[0], runs[-1]
-            if len(runs) == 2 and "s_per_step" in ours and ours["window"] != "in flight":
+            same = resting(name) or ours.get("steps_timed") == peer.get("steps_timed")
+            if len(runs) == 2 and "s_per_step" in ours and ours["window"] != "in flight" and same:
                 ours["ratio_per_body_step"] = ours["us_per_body_step"] / peer["us_per_body_step"]
             records.extend(runs)
     return {
