@@ -31,9 +31,10 @@ step solves one batch element at a time and holds about ``COMPILED_COPIES`` (3c)
 matrices while it does, over the contacts within reach (at most ``NEIGHBOURS`` box pairs per
 box), beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and element); the numpy
 step holds about ``CONTACT_COPIES`` per batch element over every slot. A run that would
-need more than half the available memory is not made; for the heap (24960 rows at 64 boxes,
-~5 GB per matrix) that leaves the steps before the lowest box can reach the ground
-(``free_steps``), which are timed and marked "in flight only".
+need more than half the available memory, or a dense solve of more than ``MAX_DENSE_ROWS``
+rows, is not made; for the heap (up to 10752 rows at 64 boxes) that leaves the steps before
+the lowest box can reach the ground (``free_steps``), which are timed and marked "in flight
+only".
 
 numpy's OpenBLAS is set to one thread (``limit_blas_threads``) so both engines use one core.
 """
@@ -76,6 +77,9 @@ COMPILED_COPIES = 5
 NEIGHBOURS = 26  # boxes of equal size that one box can touch at once (a 3 × 3 × 3 block's)
 GROUND_SLOTS = PAIR_SLOTS = 4  # a box's on the ground (its K lowest corners), a box pair's
 MEMORY_SHARE = 0.5  # of the available memory, at most, for one rigid_env run
+# Rows of a dense solve that one step still does in seconds: its factorisations cost the cube
+# (the heap of 64 boxes, measured: a first contact step ran for over a minute at batch 1).
+MAX_DENSE_ROWS = 2000
 
 
 @dataclass(frozen=True)
@@ -183,15 +187,22 @@ def contact_rows(scene: sim.Scene) -> int:
     return 3 * max((s.layout.c for s in scene.pipeline if hasattr(s, "layout")), default=0)
 
 
-def contact_bytes(scene: sim.Scene, batch: int) -> float:
-    """Memory of a contact step of ``scene`` at ``batch`` (module docstring)."""
+def solve_rows(scene: sim.Scene) -> int:
+    """Rows of the dense contact solve: every slot's on the numpy path; on the compiled path the
+    ground slots' and those of the pairs within reach, at most NEIGHBOURS per box
+    (``compiled.contact_solve``)."""
     rows = contact_rows(scene)
     if scene.backend == "numpy":
-        return CONTACT_COPIES * rows**2 * 8.0 * batch
-    # The compiled solve's rows: the ground slots and those of the pairs within reach, at most
-    # NEIGHBOURS per box (``compiled.contact_solve``), SLOTS each.
+        return rows
     n = scene.model.n_bodies
-    live = 3 * min(rows // 3, n * GROUND_SLOTS + n * NEIGHBOURS // 2 * PAIR_SLOTS)
+    return 3 * min(rows // 3, n * GROUND_SLOTS + n * NEIGHBOURS // 2 * PAIR_SLOTS)
+
+
+def contact_bytes(scene: sim.Scene, batch: int) -> float:
+    """Memory of a contact step of ``scene`` at ``batch`` (module docstring)."""
+    rows, live = contact_rows(scene), solve_rows(scene)
+    if scene.backend == "numpy":
+        return CONTACT_COPIES * rows**2 * 8.0 * batch
     return COMPILED_COPIES * live**2 * 8.0 + batch * rows / 3 * CONTACT_WIDTH * 8.0
 
 
@@ -232,12 +243,19 @@ def rigid_run(name: str, batch: int, steps: int, budget_s: float, drift: bool) -
     rec["window"] = "rest" if resting(name) else "drop"
     need = contact_bytes(scene, batch)
     allowed = MEMORY_SHARE * resources.available_memory()
+    reason = ""
     if need > allowed:
         reason = (
-            f"a contact step needs ~{resources.size_text(need)} ({contact_rows(scene)}-row "
+            f"a contact step needs ~{resources.size_text(need)} ({solve_rows(scene)}-row "
             f"dense matrices), over half the {resources.size_text(allowed / MEMORY_SHARE)} "
             "available"
         )
+    elif solve_rows(scene) > MAX_DENSE_ROWS:
+        reason = (
+            f"a contact step's dense solve may take up to {solve_rows(scene)} rows, over "
+            f"{MAX_DENSE_ROWS} (no islands or sparse solve yet)"
+        )
+    if reason:
         steps = min(steps, free_steps(name))
         if steps == 0:
             return {**rec, "steps_timed": 0, "note": f"not measured: {reason}"}
