@@ -50,7 +50,7 @@ def box_box(half_a, half_b):
 
         return kernels.run(kernels.box_box, (xa, qa, xb, qb), (half_a, half_b, margin), SLOTS)
 
-    detect.params = (half_a, half_b, margin)  # the kernel's shape tables
+    detect.params = (half_a, half_b, margin)  # type: ignore[attr-defined]
     return detect
 
 

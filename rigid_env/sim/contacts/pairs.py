@@ -27,7 +27,7 @@ def sphere_sphere(ra, rb):
 
         return kernels.run(kernels.sphere_sphere, (xa, qa, xb, qb), params)
 
-    detect.params = params  # the kernel's shape tables (``compiled.contact_pairs``)
+    detect.params = params  # type: ignore[attr-defined]  # its tables (``contact_pairs``)
     return detect
 
 
@@ -41,7 +41,7 @@ def sphere_box(radius, half_extents):
 
         return kernels.run(kernels.sphere_box, (xa, qa, xb, qb), params)
 
-    detect.params = params
+    detect.params = params  # type: ignore[attr-defined]
     return detect
 
 
