@@ -506,14 +506,15 @@ def vec(contact, e, i, col):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def relative_velocity(v, w, e, a, b, arm_a, arm_b):
-    """World velocity of a's contact point relative to b's (``Layout.relative_velocity``)."""
-    spin_a = cross((w[e, a, 0], w[e, a, 1], w[e, a, 2]), arm_a)
-    spin_b = cross((w[e, b, 0], w[e, b, 1], w[e, b, 2]), arm_b)
+def relative_velocity(u, a, b, arm_a, arm_b):
+    """World velocity of a's contact point relative to b's (``Layout.relative_velocity``) at
+    velocities u (n, 6)."""
+    spin_a = cross((u[a, 3], u[a, 4], u[a, 5]), arm_a)
+    spin_b = cross((u[b, 3], u[b, 4], u[b, 5]), arm_b)
     return (
-        (v[e, a, 0] + spin_a[0]) - (v[e, b, 0] + spin_b[0]),
-        (v[e, a, 1] + spin_a[1]) - (v[e, b, 1] + spin_b[1]),
-        (v[e, a, 2] + spin_a[2]) - (v[e, b, 2] + spin_b[2]),
+        (u[a, 0] + spin_a[0]) - (u[b, 0] + spin_b[0]),
+        (u[a, 1] + spin_a[1]) - (u[b, 1] + spin_b[1]),
+        (u[a, 2] + spin_a[2]) - (u[b, 2] + spin_b[2]),
     )
 
 
@@ -584,14 +585,7 @@ def assemble_pair(e, st, floats, o, i, a, b, u, moved, round_pair):
         contact[e, i, ARM + j] = raw_a[j] + -0.5 * apart[j]
         contact[e, i, ARM_B + j] = raw_b[j] + 0.5 * apart[j]
     arm_a, arm_b = vec(contact, e, i, ARM), vec(contact, e, i, ARM_B)
-    spin_a = cross((u[a, 3], u[a, 4], u[a, 5]), arm_a)
-    spin_b = cross((u[b, 3], u[b, 4], u[b, 5]), arm_b)
-    rel_v = (
-        (u[a, 0] + spin_a[0]) - (u[b, 0] + spin_b[0]),
-        (u[a, 1] + spin_a[1]) - (u[b, 1] + spin_b[1]),
-        (u[a, 2] + spin_a[2]) - (u[b, 2] + spin_b[2]),
-    )
-    t1 = tangent(normal, rel_v)
+    t1 = tangent(normal, relative_velocity(u, a, b, arm_a, arm_b))
     for j in range(3):
         contact[e, i, T1 + j] = t1[j]
     for side in range(2):
@@ -632,6 +626,30 @@ def detected_velocity(cs, i, a, b, u):
     return point_velocity(n0, arm_a, u, a) - point_velocity(n0, arm_b, u, b)
 
 
+@njit(cache=True, error_model="numpy")
+def assemble_pairs(e, st, ints, floats, o, engaged):
+    """``assemble``'s body–body part: whether a pair's contact is within reach (the relative
+    velocity at the detected points), and if the element is engaged (``engaged``: a ground
+    contact is), the pairs' rows. Returns whether it is."""
+    contact = st[CONTACT]
+    dt = floats[F_DT]
+    u = np.empty((ints[I_N], 6))
+    load_velocities(st, e, u)
+    first, c = ints[I_GROUND] * ints[I_K], ints[I_C]
+    for i in range(first, c):
+        normal = vec(contact, e, i, NORMAL)
+        a, b = ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i]
+        rel = relative_velocity(u, a, b, vec(contact, e, i, ARM), vec(contact, e, i, ARM_B))
+        vn = rel[0] * normal[0] + rel[1] * normal[1] + rel[2] * normal[2]
+        if contact[e, i, GAP] + dt * min(vn, 0.0) < 0:
+            engaged = True
+    if engaged:
+        for i in range(first, c):
+            a, b = ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i]
+            assemble_pair(e, st, floats, o, i, a, b, u, False, False)
+    return engaged
+
+
 # --- the stage -------------------------------------------------------------------------------
 
 
@@ -655,20 +673,8 @@ def assemble(e, st, d):
         vz = v[e, b, 2] + spin[2]
         if contact[e, i, GAP] + dt * min(vz, 0.0) < 0:
             engaged = True
-    for i in range(n_ground, c):  # body–body: the relative velocity at the detected points
-        normal = vec(contact, e, i, NORMAL)
-        rel = relative_velocity(
-            v,
-            w,
-            e,
-            ints[o[O_OWNER] + i],
-            ints[o[O_OWNER_B] + i],
-            vec(contact, e, i, ARM),
-            vec(contact, e, i, ARM_B),
-        )
-        vn = rel[0] * normal[0] + rel[1] * normal[1] + rel[2] * normal[2]
-        if contact[e, i, GAP] + dt * min(vn, 0.0) < 0:
-            engaged = True
+    if c > n_ground:  # (a ground scene allocates nothing here)
+        engaged = assemble_pairs(e, st, ints, floats, o, engaged)
     if engaged:  # (no early return: see ``ground.detect``'s note)
         st[REPORT][e, ENGAGED] = 1.0
         k = ints[I_K]
@@ -677,12 +683,6 @@ def assemble(e, st, d):
             for i in range(3):
                 contact[e, g * k, U1 + i] = v[e, b, i]
                 contact[e, g * k, U1 + 3 + i] = w[e, b, i]
-        if c > n_ground:
-            u = np.empty((ints[I_N], 6))
-            load_velocities(st, e, u)
-            for i in range(n_ground, c):
-                a, b = ints[o[O_OWNER] + i], ints[o[O_OWNER_B] + i]
-                assemble_pair(e, st, floats, o, i, a, b, u, False, False)
         for i in range(n_ground):
             b = ints[o[O_OWNER] + i]
             arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])

@@ -180,19 +180,24 @@ def solve(e, st, d):
             shortfall = max(shortfall, abs(short_all[i]))
     scale = max(scale, 1e-300)
     # The contacts that take part (the docstring): within reach, or holding an impact's impulse.
-    scaled_velocity(st, e, mass, linv, u, z)
-    energy = 0.0
-    for b in range(n):
-        for j in range(6):
-            energy += z[b, j] * z[b, j]
-    speed = np.sqrt(energy) * (1.0 + 1e-9)
     every_slot = ints[I_GROUPS] == 0  # (the docstring: scenes without body–body contacts)
+    speed = 0.0
+    if not every_slot:
+        scaled_velocity(st, e, mass, linv, u, z)
+        energy = 0.0
+        for b in range(n):
+            for j in range(6):
+                energy += z[b, j] * z[b, j]
+        speed = np.sqrt(energy) * (1.0 + 1e-9)
     slots = np.empty(c, np.int64)
     m = 0
     for i in range(c):
-        gap = cs[i, PATH_GAP]
-        bound = remaining * reach_bound(cs, i, owner[i], owner_b[i], rim, spin, speed)
-        if every_slot or extra_all[i] > 0 or gap <= bound:
+        if (
+            every_slot
+            or extra_all[i] > 0
+            or cs[i, PATH_GAP]
+            <= remaining * reach_bound(cs, i, owner[i], owner_b[i], rim, spin, speed)
+        ):
             slots[m] = i
             m += 1
     slots = slots[:m]
