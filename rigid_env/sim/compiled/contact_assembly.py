@@ -412,19 +412,21 @@ def _rows_dot(cs, i, col_i, r, j, col_j, s):
 
 
 @njit(cache=True, error_model="numpy")
-def delassus(cs, owner, owner_b, slots, rows, a):
-    """A = J̃ J̃ᵀ (rows·m, rows·m) of the contacts ``slots`` (m,) over the first ``rows`` rows
-    of each (3: all, 1: the normal block A_nn). Two contacts couple through each body they
-    share (a ground contact has one body, ``owner_b`` −1), summed in the bodies' order as
-    numpy's product."""
+def delassus(cs, owner, owner_b, slots, m, rows, a):
+    """A = J̃ J̃ᵀ (rows·m, rows·m) of the m contacts ``slots`` (every slot, in order, when
+    ``slots`` is empty: no index array to allocate) over the first ``rows`` rows of each (3:
+    all, 1: the normal block A_nn). Two contacts couple through each body they share (a
+    ground contact has one body, ``owner_b`` −1), summed in the bodies' order as numpy's
+    product."""
+    every = slots.shape[0] == 0
     # The lower triangle, mirrored: entry (q, p) is the same products summed in the same order.
-    for si in range(slots.shape[0]):
-        i = slots[si]
+    for si in range(m):
+        i = si if every else slots[si]
         ai, bi = owner[i], owner_b[i]
         for r in range(rows):
             p = rows * si + r
             for sj in range(si + 1):
-                j = slots[sj]
+                j = sj if every else slots[sj]
                 aj, bj = owner[j], owner_b[j]
                 for s in range(rows):
                     q = rows * sj + s

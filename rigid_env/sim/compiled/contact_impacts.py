@@ -112,7 +112,6 @@ def restitute(e, st, d):
     gaps = buf[o + 6 * c : o + 7 * c]  # each pass's gaps (a sphere pair's: ``round_closing``)
     o += 7 * c
     o_round = offsets(ints)[O_ROUND]
-    slots = np.arange(c)
     a_nn = block(buf, o, c, c)
     work = buf[o + c * c :]
     flags = np.zeros(4 * c, np.bool_)
@@ -153,7 +152,9 @@ def restitute(e, st, d):
             for i in range(c):
                 g = gaps[i]
                 goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
-            delassus(cs, owner, owner_b, slots, 1, a_nn)  # the rows of the detection
+            delassus(
+                cs, owner, owner_b, owner[:0], c, 1, a_nn
+            )  # every slot  # the rows of the detection
             held = True
             if not _event(
                 st,
@@ -218,7 +219,7 @@ def restitute(e, st, d):
                 assemble_pair(
                     e, st, floats, offsets(ints), i, owner[i], owner_b[i], u, True, round_pair
                 )
-            delassus(cs, owner, owner_b, slots, 1, a_nn)
+            delassus(cs, owner, owner_b, owner[:0], c, 1, a_nn)  # every slot
         # Contacts closing together, and the other contacts of their manifolds (a body on the
         # ground, a pair of bodies) closing within one step of the event, are struck together.
         for i in range(c):

@@ -141,16 +141,23 @@ def solve(e, st, d):
     cs = st[CONTACT][e]
     c = owner.shape[0]
     n = st[0].shape[1]
-    # Every slot: free velocities, targets, shortfalls, the impacts' impulses, the impulses.
-    every = np.empty(9 * c + 12 * n)
-    free_all = every[: 3 * c]
-    lam_all = every[3 * c : 6 * c]
-    target_all = every[6 * c : 7 * c]
-    short_all = every[7 * c : 8 * c]
-    extra_all = every[8 * c : 9 * c]
-    u = block(every, 9 * c, n, 6)
-    z = block(every, 9 * c + 6 * n, n, 6)
+    every_slot = ints[I_GROUPS] == 0  # (the docstring: scenes without body–body contacts)
+    # Every slot's free velocities, impulses, targets, shortfalls and the impacts' impulses.
+    # A scene that solves every slot solves these vectors themselves, and its A and work space
+    # follow them in the same allocation (each allocation costs about as much as a sweep).
+    head = 18 * n + 9 * c
+    every = np.empty(head + (9 * c * c + WORK_PER_CONTACT * c if every_slot else 0))
+    u = block(every, 0, n, 6)
+    u_in = block(every, 6 * n, n, 6)
+    z = block(every, 12 * n, n, 6)
+    at = 18 * n
+    free_all = every[at : at + 3 * c]
+    lam_all = every[at + 3 * c : at + 6 * c]
+    target_all = every[at + 6 * c : at + 7 * c]
+    short_all = every[at + 7 * c : at + 8 * c]
+    extra_all = every[at + 8 * c : at + 9 * c]
     load_velocities(st, e, u)
+    u_in[:] = u
     remaining = dt - report[e, ELAPSED]
     if ints[I_GROUPS] > 0 and report[e, ELAPSED] > 0:
         # The pairs' rows where the impacts left the bodies, t₁ from the velocities after
@@ -179,59 +186,64 @@ def solve(e, st, d):
             scale = max(scale, abs(target_all[i]))
             shortfall = max(shortfall, abs(short_all[i]))
     scale = max(scale, 1e-300)
-    # The contacts that take part (the docstring): within reach, or holding an impact's impulse.
-    every_slot = ints[I_GROUPS] == 0  # (the docstring: scenes without body–body contacts)
-    speed = 0.0
-    if not every_slot:
+    if every_slot:
+        m = c
+        slots = owner[:0]  # empty: every slot (``delassus``)
+        a = block(every, head, 3 * c, 3 * c)
+        work = every[head + 9 * c * c :]
+        free, lam, target, short, extra, mu = (
+            free_all,
+            lam_all,
+            target_all,
+            short_all,
+            extra_all,
+            mu_all,
+        )
+    else:
+        # The contacts that take part (the docstring): within reach, or holding an impact's
+        # impulse.
         scaled_velocity(st, e, mass, linv, u, z)
         energy = 0.0
         for b in range(n):
             for j in range(6):
                 energy += z[b, j] * z[b, j]
         speed = np.sqrt(energy) * (1.0 + 1e-9)
-    slots = np.empty(c, np.int64)
-    m = 0
-    for i in range(c):
-        if (
-            every_slot
-            or extra_all[i] > 0
-            or cs[i, PATH_GAP]
-            <= remaining * reach_bound(cs, i, owner[i], owner_b[i], rim, spin, speed)
-        ):
-            slots[m] = i
-            m += 1
-    slots = slots[:m]
-    size = 3 * m
-    # One scratch allocation for the solve of those, carved into views.
-    buf = np.empty(6 * n + size * size + 2 * size + 3 * m + m + WORK_PER_CONTACT * m)
-    u_in = block(buf, 0, n, 6)
-    o = 6 * n
-    a = block(buf, o, size, size)
-    o += size * size
-    free = buf[o : o + size]
-    lam = buf[o + size : o + 2 * size]
-    o += 2 * size
-    target = buf[o : o + m]
-    short = buf[o + m : o + 2 * m]
-    extra = buf[o + 2 * m : o + 3 * m]
-    mu = buf[o + 3 * m : o + 4 * m]
-    work = buf[o + 4 * m :]
-    u_in[:] = u
-    for s in range(m):
-        i = slots[s]
-        for r in range(3):
-            free[3 * s + r] = free_all[3 * i + r]
-        target[s] = target_all[i]
-        short[s] = short_all[i]
-        extra[s] = extra_all[i]
-        mu[s] = mu_all[i]
-    delassus(cs, owner, owner_b, slots, 3, a)
+        chosen = np.empty(c, np.int64)
+        m = 0
+        for i in range(c):
+            bound = reach_bound(cs, i, owner[i], owner_b[i], rim, spin, speed)
+            if extra_all[i] > 0 or cs[i, PATH_GAP] <= remaining * bound:
+                chosen[m] = i
+                m += 1
+        slots = chosen[:m]
+        size = 3 * m
+        # One scratch allocation for the solve of those, carved into views.
+        buf = np.empty(size * size + 2 * size + 4 * m + WORK_PER_CONTACT * m)
+        a = block(buf, 0, size, size)
+        at = size * size
+        free = buf[at : at + size]
+        lam = buf[at + size : at + 2 * size]
+        at += 2 * size
+        target = buf[at : at + m]
+        short = buf[at + m : at + 2 * m]
+        extra = buf[at + 2 * m : at + 3 * m]
+        mu = buf[at + 3 * m : at + 4 * m]
+        work = buf[at + 4 * m :]
+        for s in range(m):
+            i = slots[s]
+            for r in range(3):
+                free[3 * s + r] = free_all[3 * i + r]
+            target[s] = target_all[i]
+            short[s] = short_all[i]
+            extra[s] = extra_all[i]
+            mu[s] = mu_all[i]
+    delassus(cs, owner, owner_b, slots, m, 3, a)
     warm = ints[I_WARM] != 0 and cs[0, WARM_OK] != 0.0
     if warm:  # the previous step's answer (``SolverSettings.warm_start``)
         report[e, WARMED] = 1.0
         for s in range(m):
             for r in range(3):
-                lam[3 * s + r] = cs[slots[s], WARM + r]
+                lam[3 * s + r] = cs[_slot(slots, s), WARM + r]
     else:
         _particle(short_all, mass, shaped, k, lam_all, slots, lam)
     sweeps, converged = gauss_seidel(
@@ -249,7 +261,7 @@ def solve(e, st, d):
             reach = dt * peak
             reachable = np.empty(m, np.bool_)
             for s in range(m):
-                reachable[s] = short[s] > 0 or cs[slots[s], PATH_GAP] <= reach
+                reachable[s] = short[s] > 0 or cs[_slot(slots, s), PATH_GAP] <= reach
             if not active_set_start(short, a, free, reachable, extra, mu, lam, shortfall):
                 _particle(short_all, mass, shaped, k, lam_all, slots, lam)
         more, converged, steps = converge(
@@ -268,10 +280,11 @@ def solve(e, st, d):
             np.bool_(True),  # the probe's sweep decomposed A_tt into ``work``
         )
         sweeps += more
-    lam_all[:] = 0.0
-    for s in range(m):
-        for r in range(3):
-            lam_all[3 * slots[s] + r] = lam[3 * s + r]
+    if not every_slot:  # (else lam is lam_all)
+        lam_all[:] = 0.0
+        for s in range(m):
+            for r in range(3):
+                lam_all[3 * slots[s] + r] = lam[3 * s + r]
     if ints[I_WARM] != 0:
         for i in range(c):
             for r in range(3):
@@ -297,8 +310,15 @@ def solve(e, st, d):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _slot(slots, s):
+    """The slot of the solve's contact s: s itself when ``slots`` is empty (every slot)."""
+    return s if slots.shape[0] == 0 else slots[s]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _particle(short_all, mass, shaped, k, lam_all, slots, lam):
-    """The ground particle start over every slot (``particle_start``), taken at ``slots``."""
+    """The ground particle start over every slot (``particle_start``), taken at ``slots``
+    (``lam`` is ``lam_all`` when ``slots`` is empty)."""
     lam_all[:] = 0.0
     particle_start(short_all, mass, shaped, k, lam_all, 3)
     for s in range(slots.shape[0]):
