@@ -65,8 +65,12 @@ O_SHAPES = 17  # in floats
 O_SPIN = 18  # in floats: per body ‖L‖₂ = 1/√(its least principal moment) (``contact_solve``)
 O_ROUND = 19  # in ints: per contact, 1 for a sphere–sphere contact (``Rows.moved``)
 O_BOUND = 20  # in floats: per body, the radius of its bounding sphere (0 without a shape)
-N_BLOCKS = 21
-INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS, O_ROUND)
+# In ints: per body, the contact row that holds its record through the step (``U1``,
+# ``PATH_Q``), −1 for a body without contacts: its first ground slot, or in a scene without
+# a ground a row of its own after the contacts (``record_rows``).
+O_RECORD = 21
+N_BLOCKS = 22
+INT_BLOCKS = (O_OWNER, O_SHAPED, O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS, O_ROUND, O_RECORD)
 # A group's row: its kind (``contact_pairs.KINDS``), pairs, slots per pair, first pair, first
 # contact slot, and where its shape table starts in the ``O_SHAPES`` block.
 G_KIND, G_PAIRS, G_SLOTS, G_FIRST_PAIR, G_FIRST_SLOT, G_SHAPES, GROUP_WIDTH = range(7)
@@ -79,10 +83,9 @@ _BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def contact_data(scene) -> tuple | None:
-    """The data tuple of the contact kernels, or None when the scene steps with numpy: no
-    ground contacts (a body's path through the step's impacts is kept in its first ground
-    slot, ``layout.PATH_Q``, and its velocities after the velocity update, ``U1``). Built once per scene: every contact kernel's factory asks (and
-    each parameter row's scene, ``sim.parameters``)."""
+    """The data tuple of the contact kernels, or None for a scene without contacts. Built once
+    per scene: every contact kernel's factory asks (and each parameter row's scene,
+    ``sim.parameters``)."""
     if scene not in _BUILT:
         _BUILT[scene] = _contact_data(scene)
     return _BUILT[scene]
@@ -94,21 +97,28 @@ def _contact_data(scene) -> tuple | None:
         return None
     lay = stages[AssembleContacts].layout
     settings = stages[Restitute].settings
-    if lay.n_ground == 0:
-        return None
     model = scene.model
-    ground = ground_data(model.bodies)
-    if ground is None:
-        return None
-    points, foot, shaped, _ = ground
+    if lay.n_ground:
+        ground = ground_data(model.bodies)
+        if ground is None:
+            return None
+        points, foot, shaped, _ = ground
+    else:  # body–body contacts only
+        points, foot, shaped = np.zeros((0, 0, 3)), np.zeros(0), np.zeros(0, np.int64)
     n = model.n_bodies
     c = len(lay.a)
     g = len(shaped)
     v = points.shape[1]
     gravity = np.zeros(3) if model.gravity is None else np.asarray(model.gravity, float)
+    k = lay.k if lay.n_ground else 1  # (unused without a ground)
+    record = np.full(n, -1, np.int64)
+    if lay.n_ground:
+        record[shaped] = np.arange(len(shaped)) * k
+    else:
+        record[:] = c + np.arange(n)
     head = [
         g,
-        lay.k,
+        k,
         settings.max_iterations,
         settings.max_impacts,
         int(settings.start == "particle"),
@@ -149,6 +159,7 @@ def _contact_data(scene) -> tuple | None:
         O_SPIN: lay.spin,
         O_ROUND: np.concatenate([np.zeros(lay.n_ground, np.int64), lay.round_pairs]),
         O_BOUND: [bounding_radius(b.shape) for b in model.bodies],
+        O_RECORD: record,
     }
     starts = np.zeros(N_BLOCKS, dtype=np.int64)
     int_parts = [np.asarray(head, np.int64), starts]
@@ -161,6 +172,13 @@ def _contact_data(scene) -> tuple | None:
     floats = np.concatenate(float_parts).astype(float)
     # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
     return (ints, floats)
+
+
+def record_rows(lay) -> int:
+    """The rows a scene's contact array holds after its contacts: a scene without a ground
+    keeps each body's record (``O_RECORD``) in a row of its own; a ground scene keeps it in
+    the body's first ground slot."""
+    return 0 if lay.n_ground else lay.n_bodies
 
 
 def bounding_radius(shape) -> float:
@@ -249,6 +267,7 @@ def offsets(ints):
         ints[s + 18],
         ints[s + 19],
         ints[s + 20],
+        ints[s + 21],
     )
 
 
@@ -679,12 +698,12 @@ def assemble(e, st, d):
         engaged = assemble_pairs(e, st, ints, floats, o, engaged)
     if engaged:  # (no early return: see ``ground.detect``'s note)
         st[REPORT][e, ENGAGED] = 1.0
-        k = ints[I_K]
-        for g in range(ints[I_GROUND]):
-            b = ints[o[O_SHAPED] + g]
-            for i in range(3):
-                contact[e, g * k, U1 + i] = v[e, b, i]
-                contact[e, g * k, U1 + 3 + i] = w[e, b, i]
+        for b in range(ints[I_N]):
+            row = ints[o[O_RECORD] + b]
+            if row >= 0:
+                for i in range(3):
+                    contact[e, row, U1 + i] = v[e, b, i]
+                    contact[e, row, U1 + 3 + i] = w[e, b, i]
         for i in range(n_ground):
             b = ints[o[O_OWNER] + i]
             arm = (contact[e, i, ARM], contact[e, i, ARM + 1], contact[e, i, ARM + 2])

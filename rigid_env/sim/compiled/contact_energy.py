@@ -23,7 +23,6 @@ from .contact_assembly import (
     I_GRAVITY,
     I_GROUND,
     I_GROUPS,
-    I_K,
     I_N,
     I_SPRINGS,
     I_V,
@@ -31,6 +30,7 @@ from .contact_assembly import (
     O_FOOT,
     O_MASS,
     O_POINTS,
+    O_RECORD,
     O_SHAPED,
     O_SPRINGS,
     contact_data,
@@ -109,6 +109,12 @@ def slot_of(ints, o, b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def record_of(ints, o, b):
+    """The contact row that holds body b's record (``U1``, ``PATH_Q``), or −1 (no contact)."""
+    return ints[o[O_RECORD] + b]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def depth(floats, o, ints, g, q, z):
     """``stages.separated`` (ground) for shaped body g at orientation q and height z: its
     deepest overlap, 0 if none. The deepest of its K lowest points is its deepest."""
@@ -134,12 +140,11 @@ def vec4(a, e, b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def velocity_after_update(contact, v, w, e, b, g, k):
-    """u₁ of body b: its (v, ω) after the velocity update, kept by ``assemble`` in its first
-    contact slot (``U1``); a body without contacts (g < 0): unchanged since then."""
-    if g < 0:
+def velocity_after_update(contact, v, w, e, b, s):
+    """u₁ of body b: its (v, ω) after the velocity update, kept by ``assemble`` in its record
+    row s (``U1``, ``record_of``); a body without contacts (s < 0): unchanged since then."""
+    if s < 0:
         return vec3(v, e, b), vec3(w, e, b)
-    s = g * k
     return (
         (contact[e, s, U1], contact[e, s, U1 + 1], contact[e, s, U1 + 2]),
         (contact[e, s, U1 + 3], contact[e, s, U1 + 4], contact[e, s, U1 + 5]),
@@ -147,14 +152,13 @@ def velocity_after_update(contact, v, w, e, b, g, k):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def path_orientation(st, e, b, g, k, elapsed):
+def path_orientation(st, e, b, s, elapsed):
     """q_path of body b (``LimitEnergy``): q₀ when no event moved the element, else the
     restitution's ``PATH_Q``, or for a body without contacts its working q turned by
     elapsed ω at once."""
     if not elapsed > 0:
         return vec4(st[Q0], e, b)
-    if g >= 0:
-        s = g * k
+    if s >= 0:  # its record row (``record_of``)
         c = st[CONTACT]
         return (c[e, s, PATH_Q], c[e, s, PATH_Q + 1], c[e, s, PATH_Q + 2], c[e, s, PATH_Q + 3])
     w = st[W]
@@ -270,7 +274,7 @@ def separated(ints, floats, o, x, q, out):
 
 
 @njit(cache=True, error_model="numpy")
-def separated_end_potential(st, e, ints, floats, o, h, elapsed, k):
+def separated_end_potential(st, e, ints, floats, o, h, elapsed):
     """Σ_b m (x · g) at the separated end positions of a scene with body–body contacts:
     x_end = base + h v, q_end = exp(h ω) q_path for every body (``LimitEnergy``)."""
     n = ints[I_N]
@@ -281,7 +285,7 @@ def separated_end_potential(st, e, ints, floats, o, h, elapsed, k):
         for j in range(3):
             x_end[b, j] = base[j] + h * v[e, b, j]
         turn = quat_exp((h * w[e, b, 0], h * w[e, b, 1], h * w[e, b, 2]))
-        q_path = path_orientation(st, e, b, slot_of(ints, o, b), k, elapsed)
+        q_path = path_orientation(st, e, b, record_of(ints, o, b), elapsed)
         qb = quat_normalize(quat_multiply(turn, q_path))
         for j in range(4):
             q_end[b, j] = qb[j]
@@ -304,7 +308,7 @@ def limit_energy(e, st, d):
         return
     ints, floats = d
     o = offsets(ints)
-    n, k = ints[I_N], ints[I_K]
+    n = ints[I_N]
     has_gravity = ints[I_GRAVITY] != 0
     dt = floats[F_DT]
     contact = st[CONTACT]
@@ -321,20 +325,20 @@ def limit_energy(e, st, d):
     loaded = ints[I_SPRINGS] > 0
     for b in range(n):
         loaded = loaded or has_load(st, e, b)
-        g = slot_of(ints, o, b)
+        row = record_of(ints, o, b)
         qb0, xb0 = vec4(q0, e, b), vec3(x0, e, b)
         ke_start += kinetic_term(
             floats, o[O_BODY] + BODY_WIDTH * b, qb0, vec3(v0, e, b), vec3(w0, e, b)
         )
         p_start += potential_term(floats, o, b, xb0)
-        v1, w1 = velocity_after_update(contact, v, w, e, b, g, k)
+        v1, w1 = velocity_after_update(contact, v, w, e, b, row)
         ke_free += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, qb0, v1, w1)
         x_free = (xb0[0] + dt * v1[0], xb0[1] + dt * v1[1], xb0[2] + dt * v1[2])
         p_free += potential_term(floats, o, b, x_free)
         vb, wb = vec3(v, e, b), vec3(w, e, b)
         rate_free += applied_rate(st, e, b, v1, w1)
         rate += applied_rate(st, e, b, vb, wb)
-        q_path = path_orientation(st, e, b, g, k, elapsed)
+        q_path = path_orientation(st, e, b, row, elapsed)
         ke += kinetic_term(floats, o[O_BODY] + BODY_WIDTH * b, q_path, vb, wb)
         base = base_position(st, e, b, elapsed)
         p_base += potential_term(floats, o, b, base)
@@ -342,7 +346,7 @@ def limit_energy(e, st, d):
         p_tail += potential_term(floats, o, b, x_tail)
     for s in range(ints[I_SPRINGS]):
         b = spring_body(floats, o, s)
-        v1, w1 = velocity_after_update(contact, v, w, e, b, slot_of(ints, o, b), k)
+        v1, w1 = velocity_after_update(contact, v, w, e, b, record_of(ints, o, b))
         rate_free += spring_rate(floats, o, s, st, e, v1, w1)
         rate += spring_rate(floats, o, s, st, e, vec3(v, e, b), vec3(w, e, b))
     work = dt * rate  # W(u); W(f u) = f W(u)
@@ -369,7 +373,7 @@ def limit_energy(e, st, d):
         h = f * tail
         total = 0.0
         if pairs:
-            total = separated_end_potential(st, e, ints, floats, o, h, elapsed, k)
+            total = separated_end_potential(st, e, ints, floats, o, h, elapsed)
         for b in range(n if not pairs else 0):
             g = slot_of(ints, o, b)
             base = base_position(st, e, b, elapsed)
@@ -377,7 +381,7 @@ def limit_energy(e, st, d):
             z = base[2] + h * vb[2]
             if g >= 0:  # separated at its end orientation exp(h ω) q_path
                 turn = quat_exp((h * w[e, b, 0], h * w[e, b, 1], h * w[e, b, 2]))
-                q_path = path_orientation(st, e, b, g, k, elapsed)
+                q_path = path_orientation(st, e, b, record_of(ints, o, b), elapsed)
                 deep = depth(floats, o, ints, g, quat_normalize(quat_multiply(turn, q_path)), z)
                 if deep > 0:
                     z += deep
@@ -398,10 +402,10 @@ def limit_energy(e, st, d):
     update_dot = 0.0
     for b in range(n):
         q_path = (0.0, 0.0, 0.0, 1.0)
-        g = slot_of(ints, o, b)
+        row = record_of(ints, o, b)
         if moved:  # (before the body's ω is scaled: q_path turns a body without contacts)
-            q_path = path_orientation(st, e, b, g, k, elapsed)
-        v1, w1 = velocity_after_update(contact, v, w, e, b, g, k)
+            q_path = path_orientation(st, e, b, row, elapsed)
+        v1, w1 = velocity_after_update(contact, v, w, e, b, row)
         if f < 1:
             for j in range(3):
                 v[e, b, j] = v[e, b, j] * f

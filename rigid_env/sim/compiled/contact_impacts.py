@@ -31,6 +31,7 @@ from .contact_assembly import (
     I_MAX_ITERATIONS,
     O_EPS,
     O_OWNER,
+    O_RECORD,
     O_ROUND,
     O_THRESHOLD,
     add_impulses,
@@ -111,7 +112,7 @@ def restitute(e, st, d):
     none = buf[o + 5 * c : o + 6 * c]
     gaps = buf[o + 6 * c : o + 7 * c]  # each pass's gaps (a sphere pair's: ``round_closing``)
     o += 7 * c
-    o_round = offsets(ints)[O_ROUND]
+    o_round, o_record = offsets(ints)[O_ROUND], offsets(ints)[O_RECORD]
     a_nn = block(buf, o, c, c)
     work = buf[o + c * c :]
     flags = np.zeros(4 * c, np.bool_)
@@ -128,9 +129,11 @@ def restitute(e, st, d):
         vn1 = normal_speed(cs, i, owner[i], owner_b[i], u)
         half[i] = 0.5 * (vn1 - vn0)
     k = ints[I_K]
-    for g in range(shaped.shape[0]):  # the path's orientation starts at the working q
-        for j in range(4):
-            cs[g * k, PATH_Q + j] = q[e, shaped[g], j]
+    record = ints[o_record : o_record + n]  # each body's record row (``O_RECORD``)
+    for b in range(n):  # the path's orientation starts at the working q
+        if record[b] >= 0:
+            for j in range(4):
+                cs[record[b], PATH_Q + j] = q[e, b, j]
     elapsed = 0.0
     events = 0
     held = False  # the supports' pass (restitution's docstring) ran
@@ -197,12 +200,13 @@ def restitute(e, st, d):
         for b in range(n):
             for j in range(3):
                 disp[e, b, j] += first * u[b, j]
-        # The orientation follows the path too (``Path.orientation``), in a shaped body's
+        # The orientation follows the path too (``Path.orientation``), in a body's record
         # ``PATH_Q`` (a body without contacts keeps its ω: ``limit_energy`` turns it at once).
-        for g in range(shaped.shape[0]):
-            b = shaped[g]
+        for b in range(n):
+            if record[b] < 0:
+                continue
             turn = quat_exp((first * u[b, 3], first * u[b, 4], first * u[b, 5]))
-            p = cs[g * k, PATH_Q : PATH_Q + 4]
+            p = cs[record[b], PATH_Q : PATH_Q + 4]
             qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
             for j in range(4):
                 p[j] = qb[j]

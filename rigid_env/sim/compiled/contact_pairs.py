@@ -42,6 +42,7 @@ from .contact_assembly import (
     load_velocities,
     norm,
     offsets,
+    record_rows,
     scaled_velocity,
 )
 from .layout import (
@@ -259,4 +260,5 @@ def _collide_pairs(scene):
         return None
     stage = next(s for s in scene.pipeline if s.name == "collide_pairs")
     slots = sum(len(pa) * s for pa, _, _, s in stage.pairs.groups)
-    return Kernel(__name__, "collide", data, slots=slots, width=CONTACT_WIDTH)
+    lay = next(s for s in scene.pipeline if s.name == "assemble_contacts").layout
+    return Kernel(__name__, "collide", data, slots=slots + record_rows(lay), width=CONTACT_WIDTH)
