@@ -15,8 +15,8 @@ kernel factories from the scene with row e's bodies and ground, so nothing is co
 
 What may differ per element is what does not change a scene's composition or its contact
 slots: the bodies' masses and inertias (the shapes stay the scene's) and the ground's friction
-and restitution. Scenes that step with numpy (body–body contacts without a ground) take the
-model of their scene only: for them ``Scene.step`` refuses parameters.
+and restitution. A scene that steps with numpy (``backend="numpy"``) takes the model of its
+scene only: for it ``Scene.step`` refuses parameters.
 """
 
 from __future__ import annotations

@@ -211,13 +211,14 @@ def test_backend_selection(monkeypatch):
         sim.Scene(body, 0.01, backend="fortran")
 
 
-def test_unsupported_scenes_fall_back_to_numpy_or_refuse():
-    """Body–body contacts have no kernels: ``auto`` steps them with numpy, ``compiled`` says
-    why it cannot."""
+def test_body_body_scenes_without_a_ground_step_compiled():
+    """Every scene the Scene accepts has kernels: two spheres in space, without a ground,
+    step compiled under ``auto`` and ``compiled`` accepts them."""
     balls = [sim.Body.sphere(0.1, 1.0), sim.Body.sphere(0.1, 1.0)]
-    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="auto").backend == "numpy"
-    with pytest.raises(ValueError, match="no compiled kernel"):
-        sim.Scene(balls, 0.01, contacts=sim.Material(), backend="compiled")
+    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="auto").backend == "compiled"
+    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="compiled").backend == (
+        "compiled"
+    )
 
 
 def test_without_numba_auto_is_numpy_and_compiled_refuses(monkeypatch):

@@ -46,13 +46,13 @@ contacts). ``contact`` columns: ``ARM`` (3, world vector from the body's centre 
 point), ``GAP`` (signed height, < 0 = penetration), ``BODY`` (body index as a float); the
 columns from ``SOLVER`` on belong to the contact solve and restitution (``contact_*.py``: the
 rows of J̃, the tangent, the gap after the impacts, their impulse, a body's velocities after the
-velocity update and its orientation along the impacts' path; see ``layout.py``). Scenes with a
-ground run their contact stages compiled, body–body contacts included (``contact_pairs.py``:
+velocity update and its orientation along the impacts' path; see ``layout.py``). Every contact
+scene runs its contact stages compiled, body–body contacts included (``contact_pairs.py``:
 detection by ``pairs.py``'s kernels, the one implementation of sphere–sphere, sphere–box and
 box–box detection; then every contact of the element takes part in each impact, with the
-pairs' rows moved to its instant, and in one solve). Body–body scenes without a ground step
-with numpy: a body's path through the impacts is kept in its first ground slot. Ground
-slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
+pairs' rows moved to its instant, and in one solve). A body's record through the step (its velocities after the velocity update,
+its path through the impacts) is kept in the contact row ``O_RECORD`` names: its first
+ground slot, or without a ground a row of its own after the contacts. Ground slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
 at the start-of-step pose as numpy does (its order is Gauss–Seidel's visiting order, so both
 backends visit the contacts alike). ``report`` columns: ``ITERATIONS`` (most iterations a
@@ -94,7 +94,7 @@ stages run between them). Register with ``registry.register_integrator(name, mod
 ``scene.stages``) to a factory ``factory(scene) -> Kernel | tuple[Kernel, ...] | None``;
 ``Kernel`` records the module path and function name of the element kernel, its data tuple,
 whether it is a template, and the contact slots it writes (detection). A factory returns
-``None`` when it cannot run that scene (e.g. body–body contacts without a ground): the scene
+``None`` when it cannot run that scene (a stage of your own without a kernel): the scene
 then steps with numpy
 (``auto``) or refuses (``compiled``). Force terms register likewise (``register_force``) and
 return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_solve.py``) and
