@@ -1,36 +1,30 @@
-"""Every sim test runs on both backends: the numpy reference and the compiled kernels.
+"""The sim suite runs once, on the compiled step.
 
-The ``sim_backend`` fixture is autouse and parametrised per test as ``[numpy]`` and
-``[compiled]``: it sets ``RIGID_ENV_BACKEND`` for the scenes a test builds (``numpy``, or
-``auto``, which compiles every scene whose stages all have kernels and runs the rest on numpy).
-A scene that passes ``backend=`` itself keeps it. The modules that choose their backends
-themselves, or test no step, run once.
+Every scene the ``Scene`` accepts has kernels, so ``RIGID_ENV_BACKEND=auto`` (set for every test
+here) steps every scene a test builds compiled. The numpy step is still there
+(``backend="numpy"``) until the engine issue deletes it: the tests that compare the two pass
+``backend=`` themselves (``test_compiled*.py``). The modules in ``BOTH`` test the two
+implementations of the contact solver's parts directly, each through the ``sim_backend``
+fixture (``[numpy]`` and ``[compiled]``): cheap solves of fixed problems, no scene compiles.
 """
 
 import pytest
 
 BACKENDS = ("numpy", "compiled")
-NUMPY_ONLY = {
-    "test_compiled.py": "compares the backends itself (explicit backend= everywhere)",
-    "test_compiled_contacts.py": "compares the backends itself (explicit backend= everywhere)",
-    "test_compiled_pairs.py": "compares the backends itself (explicit backend= everywhere)",
-    "test_compiled_cache.py": "tests numba's cache, not a step",
-    "test_compile_helper.py": "tests the compile helper, not a step",
-    "test_disable_jit.py": "runs the compiled kernels as Python itself (backend set explicitly)",
-    "test_pair_detection.py": "tests the pair detection kernels, which both backends call",
-    "test_min_norm.py": "tests one compiled kernel against numpy's pinv, not a step",
-    "test_parameters.py": "per-element parameters are the compiled step's (backend= explicit)",
-}
+BOTH = {"test_contact_newton.py": "tests numpy's and the kernels' solver parts on one problem"}
 
 
 def pytest_generate_tests(metafunc):
     if "sim_backend" in metafunc.fixturenames:
-        only = metafunc.definition.path.name in NUMPY_ONLY
-        metafunc.parametrize("sim_backend", ("numpy",) if only else BACKENDS, indirect=True)
+        both = metafunc.definition.path.name in BOTH
+        metafunc.parametrize("sim_backend", BACKENDS if both else ("compiled",), indirect=True)
+
+
+@pytest.fixture
+def sim_backend(request):
+    return request.param
 
 
 @pytest.fixture(autouse=True)
-def sim_backend(request, monkeypatch):
-    backend = request.param
-    monkeypatch.setenv("RIGID_ENV_BACKEND", "numpy" if backend == "numpy" else "auto")
-    return backend
+def auto_backend(monkeypatch):
+    monkeypatch.setenv("RIGID_ENV_BACKEND", "auto")

@@ -1,6 +1,6 @@
 """Applied loads on touching bodies: a pushed, torqued or tipped body moves as Newton–Euler says.
 
-Bodies pushed *from* rest (and along their motion), against closed forms, on both backends
+Bodies pushed *from* rest (and along their motion), against closed forms, on the compiled step
 (``conftest``). The energy guard (``contacts.energy``) must never take away the work of
 applied forces, torques and body torques: a resting body's contact-free step falls and loses
 ½ m g² Δt², and every load that did less work than that used to be scaled away.

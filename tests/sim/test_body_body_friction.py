@@ -1,4 +1,4 @@
-"""Coulomb friction between two bodies, pushed from rest (both backends, ``conftest``).
+"""Coulomb friction between two bodies, pushed from rest (the compiled step, ``conftest``).
 
 A box of mass m rests on a box of mass M on the ground, every contact with friction μ and no
 restitution. A horizontal force F at the top box's centre:

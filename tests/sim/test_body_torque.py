@@ -1,5 +1,5 @@
 """A torque fixed in the body frame (``Scene.step(..., body_torque=)``) and several steps per
-call (``steps=``), on both backends (``conftest``).
+call (``steps=``), on the compiled step (``conftest``).
 
 The body torque turns with the body: every integrator evaluates R(q) τ_body at the orientation
 of each of its load evaluations. Tested against closed forms (spin-up about a principal axis),

@@ -3,7 +3,7 @@
 Which scenes it takes (every pair scene, with a ground or without one), that a batch steps as its elements alone and
 with per-element parameters as a scene of each row's bodies, and that it agrees with the numpy
 step where the contact impulses are unique. The laws themselves (resting stacks, impacts on a
-resting box, friction between boxes, momentum) are tested on both backends by
+resting box, friction between boxes, momentum) are tested on the compiled step by
 ``test_box_box``, ``test_contacts``, ``test_contact_laws`` and ``test_body_body_friction``.
 """
 

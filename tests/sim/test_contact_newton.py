@@ -4,8 +4,9 @@ step that Gauss–Seidel alone stops at its cap: taken from a ``RigidEnv/BoxLand
 its ±x face under a body torque, three corners loaded). From the active-set start Gauss–Seidel
 needs ~600 sweeps to the tolerance (cap 500); with the polish the step converges.
 
-Each test runs on both backends (``conftest``): scene tests step that backend, solver tests call
-that backend's ``converge`` on the element's contact problem (assembled by the numpy path).
+Each test runs on both implementations (``conftest.BOTH``): scene tests step that backend,
+solver tests call that backend's ``converge`` on the element's contact problem (assembled by
+the numpy path).
 """
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""What ``Scene.step`` guarantees about the arrays it takes and returns, on both backends.
+"""What ``Scene.step`` guarantees about the arrays it takes and returns.
 
 The compiled step passes the caller's arrays to its kernel when they already have the one
 memory layout it takes (float64, C-contiguous, aligned, writeable) and checks a state on every

@@ -1,4 +1,4 @@
-"""A step returns its report with the state (``State.report``), on both backends.
+"""A step returns its report with the state (``State.report``).
 
 The report belongs to the step that made the state, not to the scene: a state read after other
 steps of its scene, or stepped beside them on other threads, still reports its own step.
