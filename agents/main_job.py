@@ -324,7 +324,7 @@ def _backend(env_id: str, env_kwargs: dict) -> str:
 
     env: Any = make_vec(env_id, 1, **env_kwargs)  # a rigid_env vector env: a task with a scene
     task = env.unwrapped.task
-    backend = str(getattr(task.scene, "backend", "numpy"))
+    backend = str(task.scene.backend)
     if backend == "compiled" and getattr(task.config, "backend", None) == "compiled-threads":
         backend = "compiled-threads"
     env.close()

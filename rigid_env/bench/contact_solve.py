@@ -143,14 +143,13 @@ def measure(
 def rollout_boxlanding(
     episodes: int,
     seed: int = 0,
-    backend: str = "auto",
     settings: sim.SolverSettings | None = None,
     policy: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> dict:
     """Per-physics-step contact statistics of ``episodes`` BoxLanding episodes under random
     actions (``seed`` seeds the env and its action space), or under ``policy`` (observation →
     action) when given. The env steps as usual; before each
-    action a copy of its scene (``backend``) steps the same state with the same body torque one
+    action a copy of its scene steps the same state with the same body torque one
     physics step at a time, ``frame_skip`` times, and its reports are collected (and the wall
     time of those steps, ``settings`` the scene's solver settings)."""
     import gymnasium as gym
@@ -168,7 +167,6 @@ def rollout_boxlanding(
         integrator=task.config.integrator,
         gravity=model.gravity,
         ground=model.ground,
-        backend=backend,
         contact_solver=settings,
     )
     env.action_space.seed(seed)
@@ -276,12 +274,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--seed", type=cli.nonnegative_int, default=0, help="rollout seed, default 0"
     )
     parser.add_argument(
-        "--backend",
-        default="auto",
-        choices=["auto", "numpy", "compiled"],
-        help="rollout scene backend, default auto",
-    )
-    parser.add_argument(
         "--newton-after",
         type=cli.positive_int,
         default=None,
@@ -324,11 +316,10 @@ def _run(args: argparse.Namespace) -> None:
         chosen = {"newton_after": args.newton_after, "newton_steps": args.newton_steps}
         settings = sim.SolverSettings(**{k: v for k, v in chosen.items() if v is not None})
         policy = None if args.policy is None else saved_policy(args.policy, args.algo)
-        r = rollout_boxlanding(args.episodes, args.seed, args.backend, settings, policy)
+        r = rollout_boxlanding(args.episodes, args.seed, settings, policy)
         actions = "random actions" if args.policy is None else f"policy {args.policy}"
         print(
-            f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, {actions}, "
-            f"backend {args.backend}: "
+            f"BoxLanding-v0, {r['episodes']} episodes, seed {args.seed}, {actions}: "
             f"{r['contact_steps']} contact steps, capped {100 * r['capped_share']:.2f} %, "
             f"sweeps mean {r['mean_sweeps']:.1f} median {r['median_sweeps']:.0f} "
             f"max {r['max_sweeps']}, share of sweeps in capped steps "

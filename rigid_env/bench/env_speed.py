@@ -156,7 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--backend",
         choices=BACKENDS,
-        help="the RigidEnv envs' backend argument (default: RIGID_ENV_BACKEND, else auto)",
+        help="the RigidEnv envs' backend argument (default: RIGID_ENV_BACKEND, else compiled)",
     )
     parser.add_argument(
         "--randomise",

@@ -29,14 +29,14 @@ rigid_env's contact solve assembles dense matrices over every contact slot of th
 per slot, 4 slots per box pair and 4 per box on the ground; no broad phase yet): the compiled
 step solves one batch element at a time and holds about ``COMPILED_COPIES`` (3c)² float64
 matrices while it does, over the contacts within reach (at most ``NEIGHBOURS`` box pairs per
-box), beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and element); the numpy
-step holds about ``CONTACT_COPIES`` per batch element over every slot. A run that would
+box), beside its contact rows (``layout.CONTACT_WIDTH`` floats per slot and element). A run that would
 need more than half the available memory, or a dense solve of more than ``MAX_DENSE_ROWS``
 rows, is not made; for the heap (up to 10752 rows at 64 boxes) that leaves the steps before
 the lowest box can reach the ground (``free_steps``), which are timed and marked "in flight
 only".
 
-numpy's OpenBLAS is set to one thread (``limit_blas_threads``) so both engines use one core.
+numpy's OpenBLAS is set to one thread (``limit_blas_threads``) so both engines use one core
+(MuJoCo's set-up and the bench's own arithmetic call it).
 """
 
 from __future__ import annotations
@@ -70,7 +70,6 @@ RESTITUTION = 0.0
 ROW_GAP = 1e-3  # m, between the boxes of a pyramid's row
 HEAP_DROP = 0.1  # m, the heap's lowest corner above the ground at the start
 HEAP_SEED = 0
-CONTACT_COPIES = 10  # (3c)² matrices alive in a numpy contact step (measured ~8 at 4 and 8 boxes)
 # The compiled solve's scratch: the Delassus matrix and the active-set start's system and its
 # factorisation (``compiled.contact_solve``, ``contact_starts``), one element at a time.
 COMPILED_COPIES = 5
@@ -188,12 +187,9 @@ def contact_rows(scene: sim.Scene) -> int:
 
 
 def solve_rows(scene: sim.Scene) -> int:
-    """Rows of the dense contact solve: every slot's on the numpy path; on the compiled path the
-    ground slots' and those of the pairs within reach, at most NEIGHBOURS per box
-    (``compiled.contact_solve``)."""
+    """Rows of the dense contact solve: the ground slots' and those of the pairs within reach,
+    at most NEIGHBOURS per box (``compiled.contact_solve``)."""
     rows = contact_rows(scene)
-    if scene.backend == "numpy":
-        return rows
     n = scene.model.n_bodies
     return 3 * min(rows // 3, n * GROUND_SLOTS + n * NEIGHBOURS // 2 * PAIR_SLOTS)
 
@@ -201,8 +197,6 @@ def solve_rows(scene: sim.Scene) -> int:
 def contact_bytes(scene: sim.Scene, batch: int) -> float:
     """Memory of a contact step of ``scene`` at ``batch`` (module docstring)."""
     rows, live = contact_rows(scene), solve_rows(scene)
-    if scene.backend == "numpy":
-        return CONTACT_COPIES * rows**2 * 8.0 * batch
     return COMPILED_COPIES * live**2 * 8.0 + batch * rows / 3 * CONTACT_WIDTH * 8.0
 
 

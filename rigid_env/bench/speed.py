@@ -11,11 +11,8 @@ separate reads around the whole call, so the parts are disjoint intervals inside
 (their sum falls short of it only by the bookkeeping between them). A stage a scene does not
 list in ``scene.stages`` is never called, which the free body's breakdown shows.
 
-Backends. Every scene and integrator is timed on both backends (``RIGID_ENV_BACKEND`` set to
-``numpy`` and to ``compiled`` while the scene is built; a scene with a stage that has no
-compiled kernel is listed as not available on ``compiled`` rather than silently timed on
-numpy). A compiled step is one kernel call, so its breakdown has three parts: input
-validation, the kernel, output. ``compile_times`` measures, in fresh processes with empty
+A step is one kernel call, so its breakdown has three parts: input validation, the kernel,
+output. ``compile_times`` measures, in fresh processes with empty
 numba caches, the first import of a scene's compiled step (compiles) and the next (loads it from
 the disk cache).
 
@@ -97,7 +94,7 @@ PRESETS: dict[str, Preset] = {
 }
 DT = 0.01
 BREAKDOWN_BATCH = 1024
-BACKENDS = ("numpy", "compiled")
+BACKENDS = ("compiled",)  # how a scene steps: the kernels, serially (the table's column)
 
 SceneFactory = Callable[[str, float], sim.Scene]  # (integrator, dt) -> Scene
 InitialFn = Callable[[sim.Scene, int], sim.State]  # (scene, batch) -> State
@@ -119,15 +116,10 @@ def backend(name: str) -> Iterator[None]:
             os.environ["RIGID_ENV_BACKEND"] = saved
 
 
-def build(factory: SceneFactory, integrator: str, name: str) -> sim.Scene | None:
-    """The scene on backend ``name``, or None when that backend cannot run it."""
+def build(factory: SceneFactory, integrator: str, name: str) -> sim.Scene:
+    """The scene on backend ``name``."""
     with backend(name):
-        try:
-            return factory(integrator, DT)
-        except ValueError:
-            if name == "numpy":
-                raise
-            return None
+        return factory(integrator, DT)
 
 
 def _best_time(
@@ -164,14 +156,14 @@ def scene_cases() -> list[SceneCase]:
     # landing_scene returns (scene, initial_state(batch_shape, rng)); tilts and spins vary
     # per batch element. Pre-rolled so the timed steps have the boxes bouncing and resting
     # on the ground (the contact solver running), the state a training episode spends in.
-    # One pre-roll per (Δt, batch), on the default backend and integrator: every timed case
-    # starts from the same state, and a numpy case does not pay a numpy pre-roll.
+    # One pre-roll per (Δt, batch), on the default integrator: every timed case starts from
+    # the same state.
     prerolled: dict[tuple[float, int], sim.State] = {}
 
     def landing_initial(scene: sim.Scene, batch: int) -> sim.State:
         key = (scene.dt, batch)
         if key not in prerolled:
-            with backend("auto"):
+            with backend("compiled"):
                 roll, initial = landing_scene(dt=scene.dt)
             state = initial(batch_shape=(batch,), rng=np.random.default_rng(0))
             for _ in range(int(round(scenes.LANDING_PREROLL_S / scene.dt))):
@@ -243,12 +235,7 @@ def breakdown(
     finally:
         scene.timer = saved
     rows = [{"stage": "Scene.step's input validation", "s": best["validate"]}]
-    if scene.backend == "compiled":
-        rows.append(
-            {"stage": f"compiled kernel ({' → '.join(scene.stages)})", "s": best["compiled"]}
-        )
-    else:
-        rows += [{"stage": name, "s": best[name]} for name in scene.stages]
+    rows.append({"stage": f"compiled kernel ({' → '.join(scene.stages)})", "s": best["compiled"]})
     rows.append({"stage": "Scene.step's finiteness check", "s": best["check"]})
     rows.append({"stage": "step total (instrumented)", "s": total})
     return rows
@@ -271,7 +258,6 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
     records: list[dict[str, Any]] = []
     stages: dict[str, dict[str, Any]] = {}
     memory: dict[str, dict[str, float]] = {}
-    missing: list[str] = []
     for name, factory, initial, integrators in scene_cases():
         for integrator in integrators:
             for engine_backend in BACKENDS:
@@ -279,9 +265,6 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
                     if progress:
                         progress(f"speed {name} {integrator} {engine_backend} batch={batch}")
                     scene = build(factory, integrator, engine_backend)
-                    if scene is None:
-                        missing.append(f"{name} {integrator} on {engine_backend}")
-                        break
                     state = _initial(scene, initial, batch)
                     t = _best_time(scene.step, state, cfg["block_s"], cfg["repeats"])
                     records.append(
@@ -304,10 +287,8 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
         batch = min(BREAKDOWN_BATCH, max(cfg["batches"]))
         for engine_backend in BACKENDS:
             scene = build(factory, default, engine_backend)
-            if scene is None:
-                continue
             state = _initial(scene, initial, batch)
-            key = name if engine_backend == "numpy" else f"{name} [{engine_backend}]"
+            key = f"{name} [{engine_backend}]"
             stages[key] = {
                 "integrator": default,
                 "backend": scene.backend,
@@ -326,7 +307,6 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
         "compile": compile_times(progress) if cfg["compile_probe"] else [],
         "environments": env_speed(cfg, progress),
         "landing_episode": _landing_episode(cfg, progress),
-        "unavailable": [f"{m} (a stage has no kernel)" for m in missing],
         "peers": peers.status(),
     }
 
@@ -612,7 +592,7 @@ def _engine(r: dict[str, Any]) -> str:
     """The table's engine label: MuJoCo, or rigid_env with its backend."""
     if r["engine"] != "rigid_env":
         return r["engine"]
-    return f"rigid_env {r.get('backend', 'numpy')}"
+    return f"rigid_env {r['backend']}"
 
 
 def _record(
@@ -648,7 +628,7 @@ TARGETS = (
 
 
 def targets(result: dict[str, Any]) -> list[str]:
-    """The issue's speed targets against this run's figures, both backends and MuJoCo."""
+    """The issue's speed targets against this run's figures and MuJoCo's."""
     recs = [*result["records"], *result.get("landing_episode", {}).get("records", [])]
     rows = []
     for what, scene, integrator, mj, batch, goal in TARGETS:
@@ -673,11 +653,9 @@ def targets(result: dict[str, Any]) -> list[str]:
             [
                 ("case", "what", ""),
                 ("target", "goal", ""),
-                ("numpy µs", "numpy", ".1f"),
-                ("compiled µs", "compiled", ".1f"),
+                ("rigid_env µs", "compiled", ".1f"),
                 ("MuJoCo µs", "mujoco", ".1f"),
-                ("× numpy", "x_numpy", ".2f"),
-                ("× compiled", "x_compiled", ".2f"),
+                ("× MuJoCo", "x_compiled", ".2f"),
             ],
         ),
     ]
@@ -700,7 +678,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
             ax.loglog(
                 [r["batch"] for r in line],
                 [r["body_steps_per_s"] for r in line],
-                ("o-" if key[0].endswith("numpy") else "^-") if ours else "s--",
+                "^-" if ours else "s--",
                 ms=3,
                 label=label,
             )

@@ -230,8 +230,7 @@ class HoldTask(BatchedTask):
     episodes do not depend on it. The torque limit scales the action. A physical parameter
     (mass, inertia, the ground's friction and restitution) makes the env's physics its own:
     the scene then steps every env with its own row of ``sim.Parameters`` (``parameters``),
-    rewritten for the envs a reset draws for, still one simulator call for the batch. That
-    needs the compiled step: with ``backend="numpy"`` such a configuration is refused.
+    rewritten for the envs a reset draws for, still one simulator call for the batch.
 
     The per-step work is compiled (``kernels``): the task's :meth:`_measure` reads everything
     off the state in one call, and the shared hold timer and reward terms are one more. Its
@@ -323,12 +322,6 @@ class HoldTask(BatchedTask):
         # Per-env model parameters when a physical parameter is randomised (``reset_envs``
         # writes the drawn envs' rows; built at the first reset, which draws for every env).
         self.parameters: sim.Parameters | None = None
-        if self.episode_values and self.scene.backend != "compiled":
-            names = ", ".join(n for n in self.randomised if n != "torque_scale_range")
-            raise ValueError(
-                f"{names}: randomised physics steps every env with its own parameters, which "
-                f"needs the compiled step; backend {config.backend!r} steps with numpy"
-            )
         self.prev_action = np.zeros((n, 3))
         self.hold = np.zeros(n, dtype=np.int64)
         self.terms = np.zeros((n, len(self.reward_terms)))  # columns in reward_terms' order

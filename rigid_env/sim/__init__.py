@@ -1,4 +1,5 @@
-"""``rigid_env.sim``: a batched rigid-body simulator in numpy (no Gymnasium, no torch).
+"""``rigid_env.sim``: a batched rigid-body simulator of numba element kernels over numpy arrays
+(no Gymnasium, no torch).
 
 Conventions (course notes): ``p = x + R r``; quaternions (x, y, z, w) with w = cos(θ/2);
 angular velocity in the world frame; world inertia ``M = R M0 Rᵀ``.
@@ -11,7 +12,7 @@ from .integrators import CONTACT_CAPABLE
 from .integrators import RECORDS as INTEGRATOR_RECORDS
 from .model import Ground, Material, Model, Spring
 from .parameters import Parameters
-from .pipeline import Stage, StageTimer, StepContext
+from .pipeline import Stage, StageTimer
 from .scene import (
     BACKENDS,
     CONTACT_INTEGRATOR,
@@ -47,7 +48,6 @@ __all__ = [
     "Stage",
     "StageTimer",
     "State",
-    "StepContext",
     "pipeline",
     "rotation",
 ]

@@ -15,8 +15,7 @@ kernel factories from the scene with row e's bodies and ground, so nothing is co
 
 What may differ per element is what does not change a scene's composition or its contact
 slots: the bodies' masses and inertias (the shapes stay the scene's) and the ground's friction
-and restitution. A scene that steps with numpy (``backend="numpy"``) takes the model of its
-scene only: for it ``Scene.step`` refuses parameters.
+and restitution.
 """
 
 from __future__ import annotations
@@ -129,10 +128,7 @@ def build(scene, values: dict[str, ArrayLike]) -> Parameters:
     if len(counts) > 1:
         raise ValueError(f"the parameters' row counts differ: {sizes}")
     if scene._driver is None:
-        raise ValueError(
-            "parameters: per-element parameters need the compiled step, and this scene steps "
-            f"with numpy (backend {scene.backend!r}; stages {scene.stages})"
-        )
+        raise ValueError("parameters: this scene lends a parameter row its data and does not step")
     rows = counts.pop() if counts else 1
     if rows < 1:
         raise ValueError("parameters need at least one row")

@@ -10,7 +10,6 @@ on the ground ``("gravity", "integrate_velocity", "collide_ground", "assemble_co
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
@@ -28,7 +27,7 @@ from .integrators import CONTACT_CAPABLE, RECORDS
 from .model import Ground, Material, Model, Spring
 from .parameters import Parameters
 from .parameters import build as build_parameters
-from .pipeline import StageTimer, StepContext, run
+from .pipeline import StageTimer
 from .rotation import cross, quat_rotate, quat_to_matrix
 from .state import FIELDS as STATE_FIELDS
 from .state import ORIENTATION_TOLERANCE, ZERO_TIME, State
@@ -39,8 +38,8 @@ DEFAULT_INTEGRATOR = "splitting"
 # Scenes with contacts default to semi-implicit Euler with the implicit gyroscopic term: contact
 # impulses act between its velocity and position updates, and it stays stable for tumbling boxes.
 CONTACT_INTEGRATOR = "implicit_gyro"
-# Step implementations (``compiled.backend``); ``backend=None`` reads RIGID_ENV_BACKEND, else
-# "auto": compiled kernels when numba imports and every stage has one, else numpy.
+# How the compiled step runs (``compiled.backend``); ``backend=None`` reads RIGID_ENV_BACKEND,
+# else "compiled".
 BACKEND_VARIABLE = "RIGID_ENV_BACKEND"
 _F64 = np.dtype(np.float64)
 _State_new = object.__new__
@@ -86,12 +85,12 @@ class Scene:
     linear_damping, angular_damping : decay rates of linear and angular momentum, 1/s.
     contacts : a :class:`Material` for body–body contacts, or ``None`` (bodies pass through
         each other).
-    backend : one of :data:`BACKENDS`: ``"numpy"`` (the reference implementation),
-        ``"compiled"`` (numba kernels, one call per step; ``ValueError`` when numba is missing
-        or a stage has no kernel), ``"compiled-threads"`` (the same over threads, for large
-        batches), ``"auto"`` (compiled when possible, else numpy); ``None`` reads the
-        environment variable ``RIGID_ENV_BACKEND`` (default ``"auto"``). ``scene.backend`` is
-        the one in use, ``"numpy"`` or ``"compiled"``.
+    backend : one of :data:`BACKENDS`: ``"compiled"`` (the element kernels, one call per
+        step over the batch) or ``"compiled-threads"`` (the same over threads, for large
+        batches); ``None`` reads the environment variable ``RIGID_ENV_BACKEND`` (default
+        ``"compiled"``). ``scene.backend`` is ``"compiled"`` either way. The kernels are the
+        only implementation; ``NUMBA_DISABLE_JIT=1`` runs the same source as plain Python (a
+        debugging mode, slow).
     timer : a :class:`~rigid_env.sim.pipeline.StageTimer` that accumulates the wall time of
         each stage (also settable later as ``scene.timer``); ``None`` times nothing.
     contact_solver : a :class:`~rigid_env.sim.contacts.SolverSettings` (iteration cap,
@@ -118,6 +117,7 @@ class Scene:
         backend: str | None = None,
         timer: StageTimer | None = None,
         contact_solver: SolverSettings | None = None,
+        _kernels: bool = True,
     ):
         if isinstance(bodies, Body):
             bodies = (bodies,)
@@ -185,8 +185,9 @@ class Scene:
         self.timer = timer
         self._last: State | None = None  # the last state a step returned (``report``)
         self._known_shapes: tuple = ((), ())
-        self._driver = driver_for(self, self.backend)
-        self.backend = "numpy" if self._driver is None else "compiled"
+        # A parameter row's scene (``rebuilt``) only lends its kernels' data: no driver.
+        self._driver = driver_for(self, self.backend) if _kernels else None
+        self.backend = "compiled"
 
     @property
     def report(self) -> Mapping[str, Any]:
@@ -214,9 +215,10 @@ class Scene:
         )
 
     def rebuilt(self, bodies, ground) -> Scene:
-        """This scene with other bodies and ground (same shapes, same composition), on numpy:
-        its kernels' data are a parameter row's (``parameters.row_data``)."""
-        return Scene(bodies, ground=ground, backend="numpy", **self._spec)
+        """This scene with other bodies and ground (same shapes, same composition), without a
+        driver of its own: its kernels' data are a parameter row's (``parameters.row_data``);
+        it does not step."""
+        return Scene(bodies, ground=ground, _kernels=False, **self._spec)
 
     @property
     def stages(self) -> tuple[str, ...]:
@@ -312,16 +314,15 @@ class Scene:
 
         ``steps`` (a positive int) runs that many steps in one call, each exactly as a call of
         its own would (``step(s, steps=k)`` equals k calls bit for bit) but paying the call's
-        overhead once: on the compiled backend one kernel call runs all k. With
+        overhead once: one kernel call runs all k. With
         ``SolverSettings(warm_start=True)`` each step starts its contact solve from the
         previous step's impulses, which the returned state carries into the next call
         (``State.contact_impulses``; a state that carries none starts cold). A step
         that diverges raises as a single call would, and the k steps' states are not returned.
         The returned state's ``report`` is then the k steps' reports merged entry by entry
-        into their maximum (elementwise for arrays, OR for flags; see :func:`merge_reports`):
-        an iteration count
-        is the most any step used, a count of capped solves is non-zero iff some step stopped
-        at its cap. A :class:`StageTimer` counts k steps.
+        into their maximum (per-element flags OR'ed, the energy removed summed): an iteration
+        count is the most any step used, a count of capped solves is non-zero iff some step
+        stopped at its cap. A :class:`StageTimer` counts k steps.
 
         The state passed in is never modified, and the state returned shares no memory with it
         (float64 whatever the input's dtype).
@@ -331,55 +332,9 @@ class Scene:
         start = clock() if timer is not None else 0.0
         if not (steps == 1 and type(steps) is int):
             steps = _steps(steps)
-        if self._driver is not None:
-            return self._compiled_step(state, torque, force, body_torque, steps, start, parameters)
-        if parameters is not None:
-            raise ValueError(
-                "parameters: per-element parameters need the compiled step, and this scene "
-                f"steps with numpy (backend {self.backend!r}; stages {self.stages})"
-            )
-        arrays = self._arrays(state)
-        shape = arrays[0].shape
-        torque = _load(torque, "torque", shape)
-        force = _load(force, "force", shape)
-        body_torque = _load(body_torque, "body_torque", shape)
-        reports, began = [], start
-        carried = self._carried(state, shape) if self.warm_start else None
-        warm = None if carried is None else (carried[..., :3], carried[:, 0, 3] != 0.0)
-        for _ in range(steps):
-            ctx = StepContext(
-                self.model, self.dt, State(*arrays), force, torque, self.forces, body_torque
-            )
-            ctx.warm = warm
-            # Unit quaternions to rounding: a state within ORIENTATION_TOLERANCE is
-            # renormalised; the body torque acts from that orientation.
-            ctx.q /= np.sqrt(_norm2(ctx.q))[..., None]
-            if body_torque is not None:
-                ctx.add_wrench(None, quat_rotate(ctx.q, body_torque))
-            if timer is None:
-                run(self.pipeline, ctx)
-            else:
-                mid = clock()
-                timer.add("validate", mid - start)
-                run(self.pipeline, ctx, timer)
-                mid = clock()
-            new = ctx.state()
-            if not _all_finite(new):
-                self._diagnose(arrays)
-            reports.append(ctx.report)
-            arrays, warm = new.arrays(), ctx.warm
-            if timer is not None:
-                start = clock()
-                timer.add("check", start - mid)
-        new.__dict__["_report"] = reports[0] if steps == 1 else merge_reports(reports)
-        new.__dict__["_time"] = _later(state, self.dt, steps)
-        if self.warm_start:
-            _carry(new, shape, self._slots_of(warm, shape))
-        self._last = new
-        if timer is not None:
-            timer.step_seconds += clock() - began
-            timer.steps += steps
-        return new
+        if self._driver is None:
+            raise ValueError("this scene lends a parameter row its data and does not step")
+        return self._compiled_step(state, torque, force, body_torque, steps, start, parameters)
 
     def _compiled_step(
         self, state, torque, force, body_torque, steps, start, parameters=None
@@ -391,6 +346,7 @@ class Scene:
         ``_arrays``), whose verdict ``_arrays`` then turns into the same ``ValueError``.
         """
         timer, drv = self.timer, self._driver
+        assert drv is not None  # (``step`` refuses a scene without a driver)
         arrays = self._plain_arrays(state)
         if arrays is None:
             arrays = self._arrays(state)
@@ -478,15 +434,6 @@ class Scene:
             if carried.shape[-2:] == (self._c, 4):
                 return carried.reshape(shape_size(shape), self._c, 4)
         return np.zeros((shape_size(shape), self._c, 4))
-
-    def _slots_of(self, warm, shape) -> np.ndarray:
-        """The numpy step's warm start (λ (N, C, 3), converged (N,)), or None for a cold one,
-        in the layout ``_carried`` reads (what the returned state carries)."""
-        out = np.zeros((shape_size(shape), self._c, 4))
-        if warm is not None:
-            out[..., :3] = warm[0]
-            out[:, 0, 3] = warm[1]
-        return out
 
     def _parameter_data(self, parameters, shape) -> tuple:
         """The driver's data of ``parameters`` for a state of this shape."""
@@ -627,19 +574,16 @@ def _require_finite(arrays) -> None:
             raise ValueError(f"state.{name} contains NaN or infinity")
 
 
-def _norm2(q: np.ndarray) -> np.ndarray:
-    """|q|² summed in a fixed order: a SIMD reduction's rounding can depend on the arrays'
-    memory alignment, which would make a step's result depend on where its input lives."""
-    with np.errstate(over="ignore"):  # an overflow to infinity is then rejected, not noted
-        return q[..., 0] ** 2 + q[..., 1] ** 2 + q[..., 2] ** 2 + q[..., 3] ** 2
-
-
 def _backend(value: str | None) -> str:
     source = "backend"
     if value is None:
-        value, source = os.environ.get(BACKEND_VARIABLE) or "auto", BACKEND_VARIABLE
+        value, source = os.environ.get(BACKEND_VARIABLE) or "compiled", BACKEND_VARIABLE
     if value not in BACKENDS:
-        raise ValueError(f"{source} must be one of {BACKENDS}, got {value!r}")
+        removed = " (the numpy step was removed: the kernels are the one implementation)"
+        raise ValueError(
+            f"{source} must be one of {BACKENDS}, got {value!r}"
+            + (removed if value in ("numpy", "auto") else "")
+        )
     return value
 
 
@@ -680,66 +624,3 @@ def _steps(value) -> int:
     if value < 1:
         raise ValueError(f"steps must be a positive int, got {value!r}")
     return int(value)
-
-
-def merge_reports(reports: Sequence[dict]) -> dict:
-    """The reports of consecutive steps as one: each entry is the maximum over the steps.
-
-    Numbers and flags take their maximum (a flag is True if it was in any step), arrays their
-    elementwise maximum (per-element flags OR'ed), dataclass values field by field (a field
-    with ``metadata={"merge": "sum"}``, such as an energy, is summed instead), nested dicts
-    key by key; an entry missing (or ``None``) in some steps is the maximum over the others.
-    So an iteration count is the most any one step used, and a count of solves stopped at a
-    cap is positive iff some step stopped at its cap. Anything else keeps its last value.
-    """
-    merged: dict = {}
-    for report in reports:
-        for key, value in report.items():
-            merged[key] = _maximum(merged.get(key), value)
-    return merged
-
-
-def _maximum(a, b):
-    if a is None:
-        return b
-    if b is None:
-        return a
-    if isinstance(a, dict) and isinstance(b, dict):
-        return merge_reports((a, b))
-    if dataclasses.is_dataclass(a) and type(a) is type(b) and not isinstance(a, type):
-        changes = {
-            f.name: (_sum if f.metadata.get("merge") == "sum" else _maximum)(
-                getattr(a, f.name), getattr(b, f.name)
-            )
-            for f in dataclasses.fields(a)
-            if f.init
-        }
-        return dataclasses.replace(a, **changes)
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        a, b = np.asarray(a), np.asarray(b)
-        if a.dtype == np.bool_ and b.dtype == np.bool_:
-            return a | b
-        return np.maximum(a, b)
-    if isinstance(a, (bool, np.bool_)) and isinstance(b, (bool, np.bool_)):
-        return bool(a or b)
-    if isinstance(a, (int, float, np.number)) and isinstance(b, (int, float, np.number)):
-        return max(a, b)
-    return b
-
-
-def _sum(a, b):
-    """A field that adds up over steps (``metadata={"merge": "sum"}``, e.g. energies)."""
-    if a is None:
-        return b
-    if b is None:
-        return a
-    return np.asarray(a) + np.asarray(b)
-
-
-def _all_finite(state: State) -> bool:
-    # A NaN or infinity anywhere makes an array's sum non-finite (one reduction per array);
-    # so can large finite values, whose sum overflows: only then look element by element.
-    with np.errstate(over="ignore", invalid="ignore"):
-        if all(np.isfinite(arr.sum()) for arr in state.arrays()):
-            return True
-    return all(np.isfinite(arr).all() for arr in state.arrays())

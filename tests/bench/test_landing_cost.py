@@ -14,11 +14,6 @@ import pytest
 
 from rigid_env import sim
 from rigid_env.bench import landing_cost
-from rigid_env.sim.compiled import backend as compiled_backend
-
-pytestmark = pytest.mark.skipif(
-    not compiled_backend.numba_available(), reason="numba is not installed"
-)
 
 
 def test_each_class_is_what_a_batched_step_of_its_elements_reports():

@@ -12,11 +12,6 @@ import math
 import pytest
 
 from rigid_env.bench import step_cost
-from rigid_env.sim.compiled import backend as compiled_backend
-
-pytestmark = pytest.mark.skipif(
-    not compiled_backend.numba_available(), reason="numba is not installed"
-)
 
 
 def test_step_cost_prints_each_part_of_both_cases(capsys):

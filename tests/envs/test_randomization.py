@@ -294,13 +294,6 @@ def test_randomised_physics_survives_pickling(env_id):
     )
 
 
-@pytest.mark.parametrize("env_id", ENVS)
-def test_randomised_physics_on_the_numpy_step_is_refused(env_id):
-    with pytest.raises(ValueError, match="mass_scale_range.*compiled step"):
-        make_vec(env_id, 2, backend="numpy", **PHYSICAL[env_id])
-    make_vec(env_id, 2, backend="numpy")  # without randomised physics it steps
-
-
 def test_the_drawn_mass_and_inertia_are_the_physics():
     # push_from_rest's Ω_x = limit · period / I_x with I_x the episode's: the nominal times the
     # mass scale (a denser body of the same shape) times the inertia scale.

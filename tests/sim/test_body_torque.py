@@ -7,7 +7,6 @@ the world torque where the two must coincide, an independent DOP853 reference fo
 integrator's order, and k steps in one call against k calls, bit for bit.
 """
 
-import dataclasses
 import functools
 
 import numpy as np
@@ -22,7 +21,6 @@ from rigid_env.sim.rotation import (
     quat_rotate,
     random_quaternions,
 )
-from rigid_env.sim.scene import merge_reports
 
 EPS = np.finfo(float).eps
 ORDER = {name: record.order for name, record in sim.INTEGRATOR_RECORDS.items()}
@@ -317,25 +315,6 @@ def test_the_timer_counts_every_physics_step():
 
 
 # --- reports of several steps -----------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class _Report:
-    iterations: int = 0
-    capped: int = 0
-    touched: np.ndarray | None = None
-
-
-def test_reports_of_several_steps_merge_into_their_maximum():
-    first = {"solve": _Report(3, 0, np.array([True, False, False])), "note": "a", "flag": False}
-    second = {"solve": _Report(7, 1, np.array([False, False, True])), "flag": True, "new": 2.5}
-    third = {"solve": _Report(5, 0, None), "note": "c", "flag": False}
-    merged = merge_reports([first, second, third])
-    assert merged["solve"].iterations == 7  # the most any step used
-    assert merged["solve"].capped == 1  # non-zero: some step stopped at its cap
-    assert merged["solve"].touched.tolist() == [True, False, True]  # OR per element
-    assert merged["flag"] is True and merged["new"] == 2.5 and merged["note"] == "c"
-    assert merge_reports([first]) == first
 
 
 def test_the_compiled_step_carries_results_and_folds_report_rows():

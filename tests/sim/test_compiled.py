@@ -1,13 +1,5 @@
-"""The compiled backend against the numpy reference, its determinism, and its selection.
-
-Tolerances: the two backends run the same operations, but in a few places in another order
-(einsum and matmul sums, a 6×6 LU against LAPACK's), so one step differs by a few roundings,
-|Δy| ≲ c ε |y| with ε = 2.2e-16 and c ≈ 10 operations per entry. Over K steps such differences
-add up and are amplified at most by the flow's growth factor exp(L K Δt), L the largest rate of
-the dynamics (|ω|, √(k/m), damping; ≲ 10 /s here): for K = 20, Δt = 0.01, the bound is
-K c ε e^(L K Δt) |y| ≈ 20 · 10 · 2.2e-16 · e² · |y| ≈ 3e-13 |y|, so 1e-12 relative to the
-largest entry of each array.
-"""
+"""The compiled step's machinery: ground detection, determinism, backend selection, the
+driver's composition, kernel data and types, the packed layouts."""
 
 import importlib
 
@@ -20,14 +12,8 @@ from rigid_env.sim.compiled import backend as compiled_backend
 from rigid_env.sim.compiled import ground as compiled_ground
 from rigid_env.sim.compiled import layout
 from rigid_env.sim.contacts import GroundContacts
-from rigid_env.sim.rotation import random_quaternions
+from rigid_env.sim.rotation import quat_rotate, random_quaternions
 from rigid_env.sim.scenes import landing_scene
-
-pytestmark = pytest.mark.skipif(
-    not compiled_backend.numba_available(), reason="numba is not installed"
-)
-STEPS = 20
-RTOL = 1e-12  # derived in the module docstring
 
 
 def lopsided_body():
@@ -56,70 +42,6 @@ def random_state(scene, batch, seed=0):
     )
 
 
-def assert_close(a: sim.State, b: sim.State):
-    for x, y in zip(a.arrays(), b.arrays(), strict=True):
-        scale = max(np.max(np.abs(x)), 1.0)
-        assert np.max(np.abs(x - y)) <= RTOL * scale, np.max(np.abs(x - y)) / scale
-
-
-def run_both(make, steps=STEPS, batch=4, **load):
-    numpy_scene, compiled_scene = make("numpy"), make("compiled")
-    assert compiled_scene.backend == "compiled" and numpy_scene.backend == "numpy"
-    a = b = random_state(numpy_scene, batch)
-    for _ in range(steps):
-        a, b = numpy_scene.step(a, **load), compiled_scene.step(b, **load)
-    return a, b
-
-
-@pytest.mark.parametrize("integrator", sim.INTEGRATORS)
-def test_every_integrator_matches_numpy(integrator):
-    """Two bodies (one with off-principal axes), every force term, applied loads."""
-    bodies = [sim.Body.box((0.1, 0.2, 0.3), 1.0), lopsided_body()]
-
-    def make(backend):
-        return sim.Scene(bodies, 0.01, integrator=integrator, backend=backend, **ALL_FORCES)
-
-    a, b = run_both(make, torque=(0.1, -0.2, 0.05), force=np.ones((4, 2, 3)))
-    assert_close(a, b)
-
-
-@pytest.mark.parametrize("integrator", sim.INTEGRATORS)
-def test_every_integrator_matches_numpy_with_a_body_torque(integrator):
-    """The body-frame torque, turned at each load evaluation, on both backends; several steps
-    per call on the compiled side (bit for bit k calls, ``test_body_torque``)."""
-    bodies = [sim.Body.box((0.1, 0.2, 0.3), 1.0), lopsided_body()]
-
-    def make(backend):
-        return sim.Scene(bodies, 0.01, integrator=integrator, backend=backend, **ALL_FORCES)
-
-    tau = np.random.default_rng(5).normal(0, 0.5, (4, 2, 3))
-    a, b = run_both(make, torque=(0.1, -0.2, 0.05), body_torque=tau)
-    assert_close(a, b)
-    numpy_scene, compiled_scene = make("numpy"), make("compiled")
-    start = random_state(numpy_scene, 4)
-    assert_close(
-        numpy_scene.step(start, body_torque=tau, steps=STEPS),
-        compiled_scene.step(start, body_torque=tau, steps=STEPS),
-    )
-
-
-@pytest.mark.parametrize(
-    "terms",
-    [
-        dict(gravity=(0.0, 0.0, -9.81)),
-        dict(linear_damping=0.3, angular_damping=0.5),
-        dict(springs=[spring()]),
-    ],
-    ids=["gravity", "damping", "springs"],
-)
-def test_each_force_term_matches_numpy(terms):
-    def make(backend):
-        return sim.Scene(lopsided_body(), 0.01, backend=backend, **terms)
-
-    a, b = run_both(make)
-    assert_close(a, b)
-
-
 def hexagonal_prism():
     """12 vertices: more than the 8 a polyhedron offers the ground, so the kernel selects."""
     angles = np.arange(6) * np.pi / 3
@@ -130,15 +52,16 @@ def hexagonal_prism():
     return sim.Body.polyhedron(vertices, faces, 1000.0)
 
 
-def test_ground_detection_matches_numpy():
-    """Boxes, spheres and a 12-vertex polyhedron at random poses: the same K lowest points
-    (arms and gaps) as ``GroundContacts.detect``, to rounding (one rotation, c ≈ 10 ulp)."""
+def test_ground_detection_takes_each_bodys_k_lowest_points():
+    """Boxes, spheres and a 12-vertex polyhedron at random poses: each body's K lowest
+    candidate points (arms and gaps), against the points rotated here one by one (one
+    rotation, c ≈ 10 ulp); in ascending vertex order, ties to the lower index."""
     bodies = [sim.Body.box((0.1, 0.2, 0.3), 1.0), sim.Body.sphere(0.15, 1.0), hexagonal_prism()]
     rng = np.random.default_rng(1)
     batch, n = 16, len(bodies)
     x = rng.normal(0, 0.5, (batch, n, 3))
     q = random_quaternions(rng, (batch, n))
-    arm, gap = GroundContacts(bodies).detect(x, q)
+    ground = GroundContacts(bodies)
     data = compiled_ground.ground_data(bodies)
     k = int(data[3][0])
     contact = np.zeros((batch, n * k, layout.CONTACT_WIDTH))
@@ -151,16 +74,13 @@ def test_ground_detection_matches_numpy():
     got_arm = contact[..., layout.ARM : layout.ARM + 3].reshape(batch, n, k, 3)
     got_gap = contact[..., layout.GAP].reshape(batch, n, k)
     assert np.array_equal(contact[..., layout.BODY].reshape(batch, n, k)[0, :, 0], np.arange(n))
-    # numpy's argpartition leaves the K lowest in no particular order: compare sorted by gap.
-    order, got_order = np.argsort(gap, axis=-1), np.argsort(got_gap, axis=-1)
-    assert np.allclose(np.take_along_axis(gap, order, -1), np.sort(got_gap, -1), atol=1e-15)
-    assert np.allclose(
-        np.take_along_axis(arm, order[..., None], -2),
-        np.take_along_axis(got_arm, got_order[..., None], -2),
-        atol=1e-15,
-    )
-    # The K lowest: no candidate left out lies below the highest one taken.
-    assert np.all(np.max(got_gap[:, 2], -1) <= np.sort(gap[:, 2], -1)[:, -1])
+    for e in range(batch):
+        for g in range(n):
+            arm = quat_rotate(q[e, g], ground.points[g]) + ground.foot[g, 0]
+            gap = x[e, g, 2] + arm[:, 2]
+            lowest = np.sort(np.argsort(gap, kind="stable")[:k])
+            np.testing.assert_allclose(got_gap[e, g], gap[lowest], rtol=0, atol=1e-15)
+            np.testing.assert_allclose(got_arm[e, g], arm[lowest], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("backend", ["compiled", "compiled-threads"])
@@ -197,13 +117,14 @@ def test_the_compiled_step_leaves_its_input_alone_and_shares_no_memory():
 
 
 def test_backend_selection(monkeypatch):
+    """``compiled`` by default; the numpy step and ``auto`` are gone, and say so."""
     body = sim.Body.box((0.1, 0.2, 0.3), 1.0)
-    assert sim.Scene(body, 0.01, backend="numpy").backend == "numpy"
-    assert sim.Scene(body, 0.01, backend="auto").backend == "compiled"
-    monkeypatch.setenv("RIGID_ENV_BACKEND", "numpy")
-    assert sim.Scene(body, 0.01).backend == "numpy"
-    monkeypatch.setenv("RIGID_ENV_BACKEND", "auto")
+    monkeypatch.delenv("RIGID_ENV_BACKEND", raising=False)
     assert sim.Scene(body, 0.01).backend == "compiled"
+    assert sim.Scene(body, 0.01, backend="compiled-threads").backend == "compiled"
+    for removed in ("numpy", "auto"):
+        with pytest.raises(ValueError, match="numpy step was removed"):
+            sim.Scene(body, 0.01, backend=removed)
     monkeypatch.setenv("RIGID_ENV_BACKEND", "fast")
     with pytest.raises(ValueError, match="RIGID_ENV_BACKEND"):
         sim.Scene(body, 0.01)
@@ -212,21 +133,9 @@ def test_backend_selection(monkeypatch):
 
 
 def test_body_body_scenes_without_a_ground_step_compiled():
-    """Every scene the Scene accepts has kernels: two spheres in space, without a ground,
-    step compiled under ``auto`` and ``compiled`` accepts them."""
+    """Every scene the Scene accepts has kernels: two spheres in space, without a ground."""
     balls = [sim.Body.sphere(0.1, 1.0), sim.Body.sphere(0.1, 1.0)]
-    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="auto").backend == "compiled"
-    assert sim.Scene(balls, 0.01, contacts=sim.Material(), backend="compiled").backend == (
-        "compiled"
-    )
-
-
-def test_without_numba_auto_is_numpy_and_compiled_refuses(monkeypatch):
-    monkeypatch.setattr(compiled_backend, "numba_available", lambda: False)
-    body = sim.Body.box((0.1, 0.2, 0.3), 1.0)
-    assert sim.Scene(body, 0.01, backend="auto").backend == "numpy"
-    with pytest.raises(ValueError, match="numba"):
-        sim.Scene(body, 0.01, backend="compiled")
+    assert sim.Scene(balls, 0.01, contacts=sim.Material()).backend == "compiled"
 
 
 def test_composition_follows_the_stage_tuple():

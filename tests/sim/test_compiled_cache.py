@@ -7,12 +7,10 @@ import shutil
 import sys
 from pathlib import Path
 
-import pytest
 from numba.core.dispatcher import Dispatcher
 
 from rigid_env.sim.compiled import backend, cache, first_call
 
-pytestmark = pytest.mark.skipif(not backend.numba_available(), reason="numba is not installed")
 SIM = Path(cache.__file__).resolve().parents[1]
 
 

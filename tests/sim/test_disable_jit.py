@@ -18,11 +18,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from rigid_env.sim.compiled import backend
-
-pytestmark = pytest.mark.skipif(not backend.numba_available(), reason="numba is not installed")
 ROOT = Path(__file__).resolve().parents[2]
 
 SCRIPT = """

@@ -1,4 +1,4 @@
-"""The exact torque-free flow (``integrators.exact``) and its elliptic building blocks.
+"""The exact torque-free flow (``compiled.exact_kernels``) and its elliptic building blocks.
 
 Tolerances are derived from rounding, ε = 2.2e-16, and from the stated accuracy of the
 independent references (``bench.reference``):
@@ -33,8 +33,7 @@ from scipy.special import elliprf, elliprj
 from rigid_env import sim
 from rigid_env.bench import reference as ref
 from rigid_env.bench import scenes
-from rigid_env.sim.elliptic import carlson_rf_rj, jacobi_sn_cn_dn
-from rigid_env.sim.integrators.exact import free_flow
+from rigid_env.sim.compiled import exact_kernels as kernels
 from rigid_env.sim.rotation import (
     quat_angle,
     quat_multiply,
@@ -45,6 +44,33 @@ from rigid_env.sim.rotation import (
 )
 
 EPS = np.finfo(float).eps
+
+
+# The kernels take one argument set each; these map them over arrays for the tests.
+def carlson_rf_rj(x, y, z, p):
+    x, y, z, p = np.broadcast_arrays(*(np.asarray(a, float) for a in (x, y, z, p)))
+    args = zip(x.ravel(), y.ravel(), z.ravel(), p.ravel(), strict=True)
+    out = [kernels.carlson_rf_rj(*a) for a in args]
+    rf, rj = (np.array([o[i] for o in out]).reshape(x.shape) for i in (0, 1))
+    return rf, rj
+
+
+def jacobi_sn_cn_dn(u, m, mc):
+    out = np.array([kernels.jacobi_sn_cn_dn(float(x), m, mc) for x in np.ravel(u)])
+    return tuple(out[:, i].reshape(np.shape(u)) for i in range(3))
+
+
+def free_flow(moments, m, h):
+    """(m(h), dq) for each row of m (…, 3) and h (…)."""
+    moments, m = np.broadcast_arrays(np.asarray(moments, float), np.asarray(m, float))
+    h = np.broadcast_to(np.asarray(h, float), m.shape[:-1])
+    rows = [
+        kernels.free_flow(tuple(i), tuple(mm), float(t))
+        for i, mm, t in zip(moments.reshape(-1, 3), m.reshape(-1, 3), h.ravel(), strict=True)
+    ]
+    m_new = np.array([r[0] for r in rows]).reshape(m.shape)
+    dq = np.array([r[1] for r in rows]).reshape(*m.shape[:-1], 4)
+    return m_new, dq
 
 
 def test_carlson_matches_mpmath_on_the_arguments_the_flow_uses():
@@ -87,13 +113,6 @@ def test_jacobi_functions_match_mpmath_up_to_the_separatrix(mc):
     got = np.stack((sn, cn, dn), axis=-1)
     assert np.all(np.abs(got - exact) <= bound[:, None])
     assert np.all(cn >= -bound) and np.all(dn > 0)  # |u| <= K: the exact signs, to rounding
-
-
-def test_jacobi_batch_equals_single():
-    u = np.array([0.01, 3.0, -17.0])
-    batch = np.stack(jacobi_sn_cn_dn(u, 0.9, 0.1))
-    single = np.stack([np.stack(jacobi_sn_cn_dn(x, 0.9, 0.1)) for x in u], axis=-1)
-    assert np.array_equal(batch, single)
 
 
 # (moments, Ω body). Every regime: either side of the separatrix, on it, near it (k' → 0),
@@ -269,48 +288,6 @@ def test_batch_equals_single(name):
             single = scene.step(single, torque=torque[i])
         for a, b in zip(stepped[i].arrays(), single.arrays(), strict=True):
             assert np.array_equal(a, b)  # per-element iteration counts: bit for bit
-
-
-@pytest.mark.parametrize("name", sorted(REGIMES))
-def test_compiled_flow_agrees_with_numpy(name):
-    """The numba twin, element by element: both are within rounding of the exact flow, so
-    within twice the one-evaluation bound of each other."""
-    from rigid_env.sim.compiled.exact_kernels import free_flow as compiled_flow
-
-    moments, omega, _ = REGIMES[name]
-    moments, omega = np.array(moments), np.array(omega)
-    spin = np.linalg.norm(omega)
-    for h in (0.05, -1.0, 7.3):
-        m, dq = free_flow(moments, moments * omega, h)
-        m_c, dq_c = compiled_flow(tuple(moments), tuple(moments * omega), h)
-        bound = 2 * 64 * EPS * (1 + spin * abs(h))
-        assert quat_angle(dq, np.array(dq_c)) <= bound
-        assert np.linalg.norm(m - np.array(m_c)) <= bound * np.linalg.norm(moments * omega)
-
-
-@pytest.mark.parametrize("name", ["exact", "exact4"])
-def test_compiled_step_agrees_with_numpy(name):
-    """Both backends through ``Scene``, with a torque and gravity, 40 steps of a batch."""
-    torque = 0.01 * np.random.default_rng(11).standard_normal(3)
-    steps, results = 40, {}
-    for backend in ("numpy", "compiled"):
-        scene = sim.Scene(
-            scenes.box(), 0.05, integrator=name, gravity=(0, 0, -9.81), backend=backend
-        )
-        state = scene.initial_state(
-            orientation=random_quaternions(np.random.default_rng(2), (8, 1)),
-            angular_velocity=2 * np.random.default_rng(3).standard_normal((8, 1, 3)),
-        )
-        for _ in range(steps):
-            state = scene.step(state, torque=torque)
-        results[backend] = state
-    # Each step's rounding (≤ 64 ε (1 + |ω| Δt) per flow, 4 ε storage) may differ between the
-    # two; differences add over the steps, |ω| <= 8 rad/s here.
-    bound = steps * (64 * EPS * (1 + 8 * 0.05) + 4 * EPS) * 2
-    a, b = results["numpy"], results["compiled"]
-    assert np.all(quat_angle(a.orientation, b.orientation) <= bound)
-    assert np.max(np.abs(a.angular_velocity - b.angular_velocity)) <= 8 * bound
-    assert np.max(np.abs(a.position - b.position)) <= 1e-15 * steps * 10
 
 
 @pytest.mark.parametrize("power", [-700, -300, 300, 700])

@@ -1,10 +1,10 @@
 """``rigid_env.sim.compiled``: the compiled (numba) step, one call per step over the batch.
 
-The numpy path (``rigid_env.sim.integrators``, ``forces``, ``contacts``) is the reference; every
-kernel here mirrors one numpy algorithm, operation for operation where practical, so the two
-agree to rounding. The compiled path is chosen by ``Scene(..., backend=)`` or the environment
-variable ``RIGID_ENV_BACKEND`` (``"numpy"``, ``"compiled"``, ``"auto"`` = compiled when numba
-imports and every stage of the scene has a kernel, else numpy).
+The element kernels here are the simulator's one implementation of every stage: integrators,
+forces, detection, assembly, impacts, solve, energy guarantee and separation. Correctness is
+pinned by closed forms, conservation laws, the bench's reference solutions and MuJoCo side by
+side (``tests/sim``, ``rigid_env/bench``). ``NUMBA_DISABLE_JIT=1`` runs the same source as
+plain Python, a debugging mode (``tests/sim/test_disable_jit.py``).
 
 Kernel conventions (contacts and integrators written by others follow them)
 ---------------------------------------------------------------------------
@@ -15,29 +15,29 @@ numba compiles a helper once per argument types, and a constant argument has its
 type: ``gauss_seidel(..., 1, ...)`` and ``gauss_seidel(..., 2, ...)`` are two compiles. Pass
 ``np.int64(1)`` or ``np.bool_(True)`` where one compile should serve every caller, a bare
 constant only where the specialisation is wanted (the row counts 1 and 3 of ``delassus``).
-A compiled step runs the same stages as the numpy pipeline (``rigid_env.sim.pipeline``), per
-batch element, on arrays that play the part of the ``StepContext``.
+A step runs the stages of ``scene.pipeline`` (``rigid_env.sim.pipeline``) per batch element,
+on the arrays of the step tuple.
 
 **The step tuple** ``st`` is what every element kernel receives (``layout.py`` names the slots):
 
 ====  ===========  ==================  ==========================================================
-slot  name         shape               meaning (``StepContext`` field)
+slot  name         shape               meaning
 ====  ===========  ==================  ==========================================================
-0-3   x0 q0 v0 w0  (N, n, 3|4)         the state passed in (``ctx.start``); read only
-4-7   x  q  v  w   (N, n, 3|4)         the working state (``ctx.x, q, v, w``): set to the state
+0-3   x0 q0 v0 w0  (N, n, 3|4)         the state passed in; read only
+4-7   x  q  v  w   (N, n, 3|4)         the working state: set to the state
                                        passed in with |q| renormalised before the first stage,
                                        updated in place by the stages, the step's result after
                                        the last (fresh arrays, never the caller's)
 8-9   force torq   (N, n, 3)           applied world force / torque (zeros when none given)
-10    displace     (N, n, 3)           ``ctx.displacement``: zero before the first stage; the
+10    displace     (N, n, 3)           the displacement: zero before the first stage; the
                                        contact solve adds its correction, the position update
                                        adds it to x + Δt v
-11    contact      (N, C, CW)          contact slots (``ctx.contacts``): zero before the first
+11    contact      (N, C, CW)          contact slots: zero before the first
                                        stage (fresh per call); detection writes, the solve and
                                        restitution read and write
-12    report       (N, RW)             per-element figures (``ctx.report``), zero before the
+12    report       (N, RW)             per-element figures, zero before the
                                        first stage (fresh per call)
-13    body torque  (N, n, 3)           applied body-frame torque (``ctx.body_torque``; zeros
+13    body torque  (N, n, 3)           applied body-frame torque (zeros
                                        when none given), slot ``steps.BODY_TORQUE``
 ====  ===========  ==================  ==========================================================
 
@@ -54,11 +54,10 @@ pairs' rows moved to its instant, and in one solve). A body's record through the
 its path through the impacts) is kept in the contact row ``O_RECORD`` names: its first
 ground slot, or without a ground a row of its own after the contacts. Ground slots come first: shaped body g (in body order) owns slots ``g*K .. g*K+K-1``, its K lowest
 candidate points in ascending vertex order (ties: the lower vertex index), normal +z, detected
-at the start-of-step pose as numpy does (its order is Gauss–Seidel's visiting order, so both
-backends visit the contacts alike). ``report`` columns: ``ITERATIONS`` (most iterations a
+at the start-of-step pose (its order is Gauss–Seidel's visiting order). ``report`` columns: ``ITERATIONS`` (most iterations a
 solve of this element used this step), ``CAPPED`` (1.0 if a solve stopped at its cap) and the
 others in ``layout.py``; a kernel that writes them gives its ``Kernel`` a ``report`` function
-that turns the columns into the ``scene.report`` entries its numpy twin writes.
+that turns the columns into the ``state.report`` entries.
 
 **An element kernel** is ``kernel(e, st, d) -> None``. It reads and writes only row ``e`` of
 the ``st`` arrays (so a batched step equals the same element stepped alone, bit for bit, and
@@ -76,7 +75,7 @@ the scene's force stages, in stage order, onto the applied load: ``wrench(b, x, 
 ta, tb, fds) -> (f, t)`` with ``tb`` the body-frame torque, which it turns into the world at
 q (so a body torque follows the body through every evaluation), and ``fds`` the tuple of the
 terms' data. Force stages are not element
-kernels: as in numpy, the integrator evaluates them (at the start state, and at its own
+kernels: the integrator evaluates them (at the start state, and at its own
 intermediate states).
 
 **An integrator kernel** is an element kernel that evaluates forces by calling the global name
@@ -94,9 +93,8 @@ stages run between them). Register with ``registry.register_integrator(name, mod
 ``scene.stages``) to a factory ``factory(scene) -> Kernel | tuple[Kernel, ...] | None``;
 ``Kernel`` records the module path and function name of the element kernel, its data tuple,
 whether it is a template, and the contact slots it writes (detection). A factory returns
-``None`` when it cannot run that scene (a stage of your own without a kernel): the scene
-then steps with numpy
-(``auto``) or refuses (``compiled``). Force terms register likewise (``register_force``) and
+``None`` when the scene has nothing for it to do (no contacts); a stage without a kernel is a
+``ValueError`` when the scene is built. Force terms register likewise (``register_force``) and
 return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_solve.py``) and
 add the module to ``backend.KERNEL_MODULES``.
 

@@ -1,11 +1,11 @@
-"""Which backend a scene steps with, and the compiled driver for it.
+"""The compiled driver of a scene.
 
-``RIGID_ENV_BACKEND`` (or ``Scene(..., backend=)``) is ``"numpy"``, ``"compiled"`` or ``"auto"``
-(the default): ``auto`` uses the compiled driver when numba imports and every stage of the scene
-has a kernel, else numpy; ``compiled`` insists and raises ``ValueError`` when it cannot;
-``numpy`` never compiles. Threads are opt-in: ``"compiled-threads"`` runs
-the compiled step on one chunk of the batch per core (the same per-element arithmetic, so the
-same bits); worth it only for large batches.
+The element kernels are the simulator's one implementation: every scene the ``Scene`` accepts
+has a kernel for each of its stages. ``RIGID_ENV_BACKEND`` (or ``Scene(..., backend=)``) is
+``"compiled"`` (the default) or ``"compiled-threads"``, which runs the compiled step on one
+chunk of the batch per core (the same per-element arithmetic, so the same bits); worth it only
+for large batches. ``NUMBA_DISABLE_JIT=1`` runs the same kernel source as plain Python, a
+debugging mode (``tests/sim/test_disable_jit.py``).
 
 Compile cost. Each distinct stage tuple (integrator, force terms, contact stages) compiles once,
 a few seconds, on its first step; numba caches the result on disk (the package's
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import importlib
 
-BACKENDS = ("auto", "numpy", "compiled", "compiled-threads")
+BACKENDS = ("compiled", "compiled-threads")
 # Modules whose import registers kernels (package-relative); a new kernel module goes here.
 KERNEL_MODULES = (
     "forces",
@@ -32,14 +32,6 @@ KERNEL_MODULES = (
     "contact_solve",
     "contact_energy",
 )
-
-
-def numba_available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def kernels_for(scene):
@@ -66,21 +58,12 @@ def kernels_for(scene):
 
 
 def driver_for(scene, backend: str):
-    """The compiled driver the scene should use, or None for the numpy path (``backend`` is
-    one of ``BACKENDS``, already validated by the scene)."""
-    if backend == "numpy":
-        return None
-    if not numba_available():
-        if backend == "auto":
-            return None
-        raise ValueError(f"backend {backend!r} needs numba, which is not installed")
+    """The compiled driver of the scene (``backend``: one of ``BACKENDS``, already validated
+    by the scene)."""
     found = kernels_for(scene)
-    if found is None:
-        if backend == "auto":
-            return None
+    if found is None:  # (a stage registered without a kernel: a bug, never a fallback)
         raise ValueError(
-            f"backend {backend!r}: no compiled kernel for some stage of {scene.stages}; "
-            "use backend='numpy' or 'auto'"
+            f"backend {backend!r}: no compiled kernel for some stage of {scene.stages}"
         )
     from .driver import Driver
 

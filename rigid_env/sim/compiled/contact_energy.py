@@ -1,11 +1,64 @@
-"""The energy guard and the separation of one element, mirroring ``contacts.stages.LimitEnergy``,
-``separated`` and ``SeparateContacts`` with ``contacts.energy`` (see there for why).
+"""The energy guard (``limit_energy``) and the separation (``separate_contacts``) of one element.
+
+Energy guard of a contact step: the contacts add no energy, the loads do their full work.
+
+The invariant. Per batch element, with E = KE + PE_gravity (a spring's potential is not
+counted; its force is one of the loads below), u₀ the velocities the step starts with, u₁ those
+after the velocity update (the step without contacts), u those the step ends with and
+
+    W(u) = Δt Σ_b (F_b · v_b + τ_b · ω_b),
+
+the work along the step's displacement Δt u of the velocity-independent loads other than
+gravity (applied forces, world torques, body torques turned into the world at q₀, springs at
+the start pose), the guard enforces
+
+    E_end − W(u) ≤ max(E_start, E_free − W(u₁)),            (1)
+
+E_free the energy of the step without contacts (positions x₀ + Δt u₁). In words: the step ends
+with no more energy than it started with plus what the loads put in along the motion it
+actually made; the contacts add none. Without loads W = 0 and (1) is E_end ≤ max(E_start,
+E_free): no contact response gains energy (any ε ≤ 1, any Δt up to 1 s). The maximum keeps what
+the contact-free step itself gains (an integrator's own error), not what it loses: a resting
+body's free step falls and loses ½ m g² Δt² (semi-implicit Euler), which must not bound the
+work of a push that stays below it.
+
+Why W at the end velocities: semi-implicit Euler moves the bodies by Δt u, so W(u) is a
+constant load's exact work along the step's discrete displacement, and the velocity update's
+own kinetic energy change from a load F is F·Δt (v₀ + v₁)/2 = W − ½ F² Δt²/m: (1) holds with a
+margin of ½ F² Δt²/m per pushed body, so rounding never scales a push away.
+
+How: before the position update, if (1) fails, the element's velocities are scaled by the
+largest f ∈ [0, 1] that keeps it: E(f) − W(f u) = PE(x₀) + f² KE + f (lin − W(u)) is a
+quadratic in f (``scale_to``), and E(0) = PE(x₀) ≤ E_start. Scaling keeps every contact
+constraint v_n ≥ −d/Δt. Sources of such a gain: the linearised solve at a large ω Δt, and a
+bounce, which moves the body up with its new velocity for the whole step. (1) is checked with
+the end positions separated from the ground (the overlap the rotation over the step leaves);
+the separation after the position update (``SeparateContacts``) then lifts the bodies and pays
+the lift's potential energy out of the kinetic energy, keeping E − W unchanged (``pay``), so
+the step ends at or below the bound; what cannot be paid is reported
+(``ContactReport.unpaid_energy``).
+
+Price: the stored velocities of semi-implicit Euler are step means, so even an exact elastic
+bounce ends its step with E above E_start by m g Δt v⁺ (repaid during the flight up); the guard
+takes that out, and a ball with ε = 1 loses at most Δt v⁺ of height per bounce — first order in
+Δt (``restitution`` alone keeps the modified energy exactly).
+
+What the contacts removed (``ContactReport.energy_removed``, per element): the work of the
+contact impulses against the bodies at the step's mean velocity (the trapezoid rule), less the
+potential energy the separation's lift added,
+
+    removed = −Σ_b (u_b − u₁_b)ᵀ M_b (u₀_b + u_b) / 2 − ΔPE_separation,
+
+M_b = diag(m_b I, R₀ M0_b R₀ᵀ). It is exact bookkeeping: ½ uᵀMu − ½ u₀ᵀMu₀ = (u₁ − u₀)ᵀ M
+(u₀ + u)/2 − removed − ΔPE_separation. It is 0 for a body at rest, pushed on frictionless
+ground, or in flight; the friction work for a sliding body; the kinetic energy lost in an
+inelastic impact; and the guard's price above.
 
 Both run for every engaged element, a resting box included, so they keep no scratch arrays
 and few views (an allocation costs ~30 ns per element, a view ~8 ns in reference counting):
 per-body quantities (u₁, the path's orientation, the base position, the separated end
 position) are recomputed where they are used, by the same operations, and the data arrays are
-indexed in place (``contact_assembly.offsets``). Sums over bodies keep numpy's body order.
+indexed in place (``contact_assembly.offsets``).
 """
 
 from __future__ import annotations

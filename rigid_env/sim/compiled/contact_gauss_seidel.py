@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 
-from ..contacts.solve import DISK_NEWTON_STEPS
 from .cache import njit
 
 # scratch floats per contact: A_tt's eigen-decomposition, λ before a sweep (then the sweep's
 # Δλ), λ before a Newton polish (``contact_newton.converge``)
 WORK_PER_CONTACT = 12
+DISK_NEWTON_STEPS = 8  # the secular equation's Newton iteration converges quadratically from γ = 0
 
 
 @njit(cache=True, error_model="numpy")

@@ -1,16 +1,75 @@
-"""Impacts of one element in time order, mirroring ``contacts.restitution.resolve_impacts``
-(see there for the event rule, the step-mean targets and the path).
+"""Impacts of one element in time order.
+
+Restitution: impacts resolved one after another in time order within the step.
+
+A semi-implicit step stores v₁ ≈ v(t₀ + Δt/2): velocities are step means, positions follow
+x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inelastic solve
+(``solve.py``), each at the time its contact closes:
+
+1. Per contact, its gap d (at the step's start, linearised: d + τ v_n later) closes after
+   τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
+   the material's threshold, not yet struck this step) is the next event; all impact contacts
+   closing at that instant, and those of the same manifold (body on the ground, body pair)
+   closing within one step of it (a box landing flat or nearly so: four corners), are struck
+   together, each with its own closing time (at most the step's end).
+   Supports: before the first event, the element's other contacts (no impact: ε = 0, or
+   closing below the threshold) hold from the step's start, by one inelastic normal solve
+   (``v_n ≥ −d/Δt``, ``v_n ≥ 0`` touching; the impact contacts out of play); its impulses
+   count as the contacts' impulse (the friction budget of the inelastic solve). A box at rest
+   on an edge whose far corners strike within the step pivots on the edge until they do,
+   instead of sinking through it. The supports act over the whole step, as a force would, so
+   the closing contacts' normal acceleration (``s`` below) is taken after them.
+2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
+   only), solved by ``gauss_seidel``, together with the *loaded* supports (those that carried
+   an impulse in step 1), which hold as they did: v_n⁺ ≥ 0 touching, ≥ −d/Δt at a gap d. A box
+   dropped on a box resting on the ground meets a fixed support: it leaves with ε times its
+   impact speed and the lower box stays, instead of being driven into the ground. The other
+   contacts are free in the event: unloaded contacts pass an impulse on only by an impact of
+   their own, in its order (the touching balls of a Newton's cradle in space). The bodies'
+   velocities change, so later contacts close at other times (a Newton's cradle: the striker stops, the next ball
+   moves, reaches the third, …) and the loop goes on until no impact falls within the step
+   (or ``max_impacts``, reported).
+
+Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ and
+q = Π exp(τₖ ωₖ) q₀ up to the last event, then the rest of the step with the final velocity
+(``Path``; the position update adds the difference to x₀ + Δt v as its displacement, and
+``limit_energy`` starts its rotation at exp(−elapsed ω) q so that it ends at
+exp((Δt − elapsed) ω) q). A ball a Newton's cradle sets moving mid-step travels only the rest
+of the step, and the inelastic solve keeps the gaps where the impacts left them, over the
+remaining time. Impulses act where the bodies are at the event (``Rows.moved``): a pair's
+impulses at the features' midpoint there, so angular momentum is exact.
+
+The edge freeze (fixed by the supports and the path's orientation): a box at rest tilted on an
+edge a fraction of a millimetre from flat, at Δt = 0.01 s. Its far corners close within the
+step above the threshold and are struck; without the supports the path before the event was
+the free fall through the edge, and without the orientation the end pose lost the pivot's
+turn toward flat, so the separation lifted the body back to its start height, the energy
+guard (``limit_energy``) found no energy for any motion and zeroed the velocities: tilted and
+at rest, the same every step.
+
+Targets. Semi-implicit Euler under a constant non-contact acceleration a (gravity) stores
+step-mean velocities: the instantaneous normal velocity at a time t into the step is
+w = v_n + a (t − Δt/2). Newton's law acts on it at the closing, w⁺ = −ε w, and the stored
+velocity after the event is the step-mean of the outgoing motion, v_n⁺ = −ε w + a (Δt/2 − t).
+With the path above, the steps after a bounce sample the outgoing parabola to O(a Δt²):
+apexes fall as ε²ᵏ h whatever the impact's phase within the step.
+
+Energy. Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] that keeps the
+kinetic energy from growing (Newton's law at several simultaneous contacts can add energy: a
+tumbling box with ε = 1); α = min(1, −2 z·dz / |dz|²) in z = M^(1/2) u coordinates. The step's
+total energy is guarded after the solve (``energy``).
 
 Every contact of the element, on the ground and between bodies, takes part in every event.
 The impact loop reads the normal velocities by the rows of the detection; each event's
 impulses act through the pairs' rows moved to where the bodies are at its instant
 (``contact_assembly.assemble_pair``), and a sphere pair's gap, normal velocity and closing time
-come from its line of centres there (``round_closing``), as numpy's ``Rows.moved``.
+come from its line of centres there (``round_closing``).
 
 The path's translation accumulates in the step tuple's ``DISPLACEMENT`` (per body, zero at the
-start); ``limit_energy`` turns it into the position update's displacement (``Path.displacement``).
-The gaps where the impacts left the contacts go to ``PATH_GAP``, the impulses to ``IMPULSE``,
-the time of the last event to the report's ``ELAPSED``.
+start); ``limit_energy`` turns it into the position update's displacement. The gaps where the
+impacts left the contacts go to ``PATH_GAP``, the impulses to ``IMPULSE``, the time of the
+last event to the report's ``ELAPSED``, each body's orientation along the path to its record's
+``PATH_Q``.
 """
 
 from __future__ import annotations

@@ -1,20 +1,30 @@
-"""Compiled twins of ``sim.elliptic`` and ``integrators.exact``: the exact torque-free flow per body.
+"""The exact torque-free flow per body, and the ``exact`` and ``exact4`` integrators.
 
-Scalar transcriptions of the numpy code, operation for operation (same formulas, same order,
-same per-element iteration counts), so the two paths agree to rounding; see the numpy modules
-for the method and its sources (Carlson 1995; Celledoni, Fassò & Säfström 2008; Leroy's notes).
-``exact`` and ``exact4`` are integrator templates (package docstring) built like ``splitting``'s
-Strang step, with the exact flow in place of the axis-by-axis free rotation.
+The method and its sources are in ``rigid_env.sim.integrators`` (Celledoni, Fassò & Säfström
+2008; Leroy's notes). ``exact`` and ``exact4`` are integrator templates (package docstring)
+built like ``splitting``'s Strang step, with the exact flow in place of the axis-by-axis free
+rotation. The elliptic functions it needs, to rounding:
+
+* Carlson's symmetric integrals R_F and R_J by the duplication theorem, both from one shared
+  duplication of (x, y, z): B. C. Carlson, "Numerical computation of real or complex elliptic
+  integrals", Numer. Algorithms 10 (1995) 13–26 (the algorithms of its §2 and §4; the same as
+  NIST DLMF §19.36(i)); R_F(x, y, z) = ½ ∫₀^∞ dt / √((t+x)(t+y)(t+z)),
+  R_J(x, y, z, p) = 3/2 ∫₀^∞ dt / ((t+p) √((t+x)(t+y)(t+z))) (DLMF 19.16.1–2), both to a few
+  units of rounding;
+* Jacobi sn, cn, dn by argument halving, Maclaurin series and the duplication formulas
+  (Abramowitz & Stegun 16.22.1 and 16.18), written so that nothing cancels near k → 1.
+
+scipy checks them in the tests only.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np  # noqa: F401 (used by the templates)
+import numpy as np
 
-from ..elliptic import _Q_RF, _Q_RJ, _SERIES_RADIUS, _SN_SERIES, MAX_DUPLICATIONS
-from ..integrators.splitting import _W0, _W1
+from ..integrators import W0 as YOSHIDA_W0
+from ..integrators import W1 as YOSHIDA_W1
 from . import bodies  # noqa: F401 (used by the templates)
 from .bodies import (  # noqa: F401 (used by the templates)
     INV_MASS,
@@ -48,13 +58,19 @@ wrench = None
 
 TEMPLATES = ("implicit_half_kick", "exact_strang", "exact", "exact4")
 
-SN1 = _SN_SERIES[1]
-SN2 = _SN_SERIES[2]
-SN3 = _SN_SERIES[3]
-SN4 = _SN_SERIES[4]
-Q_RF, Q_RJ, SERIES_RADIUS = _Q_RF, _Q_RJ, _SERIES_RADIUS
-DUPLICATIONS = MAX_DUPLICATIONS
-YOSHIDA_W1, YOSHIDA_W0 = _W1, _W0
+# Carlson (1995): stop when 4^-m Q < |A_m| with Q = (3r)^(-1/6) max|A0 - x| for R_F and
+# (r/4)^(-1/6) max|A0 - x| for R_J; the truncated series is then accurate to r.
+TOLERANCE = float(np.finfo(float).eps / 2)
+Q_RF = (3 * TOLERANCE) ** (-1 / 6)
+Q_RJ = (TOLERANCE / 4) ** (-1 / 6)
+DUPLICATIONS = 60  # convergence is geometric (× 4 per step): 60 is never reached by valid input
+# Maclaurin coefficients of sn(x | m) (A&S 16.22.1, continued to x⁹): polynomials in m.
+SN1 = (-1 / 6, -1 / 6)
+SN2 = (1 / 120, 14 / 120, 1 / 120)
+SN3 = (-1 / 5040, -135 / 5040, -135 / 5040, -1 / 5040)
+SN4 = (1 / 362880, 1228 / 362880, 5478 / 362880, 1228 / 362880, 1 / 362880)
+# |x| <= 2⁻⁵ after halving: the first omitted term, ≈ 0.009 x¹¹ at m = 1 (tanh), is < 1e-17 |x|.
+SERIES_RADIUS = 2.0**-5
 
 
 # --- elliptic functions -------------------------------------------------------------------------
@@ -62,7 +78,9 @@ YOSHIDA_W1, YOSHIDA_W0 = _W1, _W0
 
 @njit(cache=True)
 def rc_one_plus(e):
-    """``elliptic._rc_one_plus``: R_C(1, 1 + e)."""
+    """R_C(1, 1 + e) = atan(√e)/√e (e > 0) or atanh(√−e)/√−e (−1 < e < 0), Carlson (1995)
+    eq. 2.9; near e = 0 both are 0/0, and the Maclaurin series 1 − e/3 + e²/5 − … is used
+    (|e| < 1e-3: the first omitted term e⁶/13 is below 1e-18)."""
     if abs(e) < 1e-3:
         return 1 - e * (1 / 3 - e * (1 / 5 - e * (1 / 7 - e * (1 / 9 - e * (1 / 11)))))
     t = math.sqrt(abs(e))
@@ -73,7 +91,9 @@ def rc_one_plus(e):
 
 @njit(cache=True)
 def carlson_rf_rj(x, y, z, p):
-    """``elliptic.carlson_rf_rj`` for one argument set."""
+    """R_F(x, y, z) and R_J(x, y, z, p) (module docstring) for x, y, z >= 0 (at most one
+    zero), p > 0; raises ``ArithmeticError`` if the duplication has not converged after
+    ``DUPLICATIONS`` steps (two zero arguments)."""
     a_f = (x + y + z) / 3
     a_j = (x + y + z + 2 * p) / 5
     q_f = Q_RF * max(abs(a_f - x), abs(a_f - y), abs(a_f - z))
@@ -87,7 +107,7 @@ def carlson_rf_rj(x, y, z, p):
         if scale * q_f < abs(a_f) and scale * q_j < abs(a_j):
             converged = True
             break
-        if not (math.isfinite(a_f) and math.isfinite(a_j)):  # NaN out, as numpy
+        if not (math.isfinite(a_f) and math.isfinite(a_j)):  # NaN out
             converged = True
             break
         sx, sy, sz, sp = math.sqrt(x), math.sqrt(y), math.sqrt(z), math.sqrt(p)
@@ -130,7 +150,8 @@ def carlson_rf_rj(x, y, z, p):
 
 @njit(cache=True)
 def jacobi_sn_cn_dn(u, m, mc):
-    """``elliptic.jacobi_sn_cn_dn`` for one argument."""
+    """sn, cn, dn of u with parameter m = k² and its complement mc = 1 − m (both given, so
+    that nothing cancels near k → 1): u halved into the series' range, then doubled back."""
     _, n = math.frexp(abs(u) / SERIES_RADIUS)
     n = max(n, 0)
     x = math.ldexp(u, -n)
@@ -158,7 +179,7 @@ def jacobi_sn_cn_dn(u, m, mc):
 
 @njit(cache=True)
 def argsort3(a):
-    """numpy's stable argsort of three values."""
+    """The stable argsort of three values."""
     o0, o1, o2 = 0, 1, 2
     if a[o0] > a[o1]:
         o0, o1 = o1, o0
@@ -171,7 +192,8 @@ def argsort3(a):
 
 @njit(cache=True)
 def relabel(moments, m):
-    """``exact._relabel``: order, signs, moments and s in the dn-axis-last labels."""
+    """The proper signed permutation s_i = sg_i m[order_i] that puts the dn axis last with
+    s₁, s₃ >= 0: (order, signs, moments and s in those labels)."""
     o0, o1, o2 = argsort3(moments)
     parity = float(math.copysign(1.0, (o0 - o1) * (o1 - o2) * (o2 - o0)))
     g0, g1, g2 = 1.0, 1.0, parity
@@ -197,7 +219,7 @@ def relabel(moments, m):
 
 @njit(cache=True)
 def swing(n0, n1, n2):
-    """``exact._swing``: the shortest rotation taking the unit vector n (n₂ >= 0) to e₃."""
+    """The shortest rotation taking the unit vector n (n₂ >= 0) to e₃."""
     w = 1.0 + n2
     scale = 1.0 / math.sqrt(2.0 * w)
     return (n1 * scale, -n0 * scale, 0.0, w * scale)
@@ -220,7 +242,10 @@ def unpermute(order, sg, v):
 
 @njit(cache=True)
 def free_flow(moments, m, h):
-    """``exact.free_flow`` for one body: (m(h), dq) with q(h) = q(0) ∘ dq."""
+    """The exact torque-free flow of one body over time h (any sign) in principal axes:
+    (m(h), dq) with q(h) = q(0) ∘ dq, |m(h)| = |m| to rounding. The flow is homogeneous
+    (m(t) = s m̂(s t), q(t) = q̂(s t) for m̂ = m/s): with s a power of two near max|m| the
+    scaling is exact, and no square below over- or underflows."""
     _, e = math.frexp(max(abs(m[0]), abs(m[1]), abs(m[2])))
     unit = (math.ldexp(m[0], -e), math.ldexp(m[1], -e), math.ldexp(m[2], -e))
     m_new, dq = unit_flow(moments, unit, math.ldexp(h, e))
@@ -229,7 +254,7 @@ def free_flow(moments, m, h):
 
 @njit(cache=True)
 def unit_flow(moments, m, h):
-    """``exact._unit_flow``: the flow for max|m| in [½, 1) (or m = 0)."""
+    """``free_flow`` for max|m| in [½, 1) (or m = 0)."""
     omega = (m[0] / moments[0], m[1] / moments[1], m[2] / moments[2])
     if (
         m[1] * omega[2] - m[2] * omega[1] == 0.0
@@ -313,7 +338,7 @@ def unit_flow(moments, m, h):
 
 @njit(cache=True)
 def exact_rotation(moments, qp, m, h):
-    """``exact.exact_rotation``: the flow of (qp, m), qp renormalised."""
+    """The exact flow of (qp, m) over h, qp renormalised."""
     m, dq = free_flow(moments, m, h)
     q = quat_multiply(qp, dq)
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])

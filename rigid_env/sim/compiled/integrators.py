@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from ..integrators.splitting import _W0, _W1
+from ..integrators import W0 as YOSHIDA_W0
+from ..integrators import W1 as YOSHIDA_W1
 from . import bodies
 from .bodies import (
     INV_MASS,
@@ -485,9 +486,6 @@ def splitting4_damped(e, st, d):
         x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W0 * dt)
         x, q, v, w = strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, YOSHIDA_W1 * dt)
         store(st, e, b, x, q, v, w)
-
-
-YOSHIDA_W1, YOSHIDA_W0 = _W1, _W0  # the triple jump's weights
 
 
 # --- implicit_gyro ----------------------------------------------------------------------------

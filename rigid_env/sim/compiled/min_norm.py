@@ -24,9 +24,15 @@ from __future__ import annotations
 
 import math
 
-from ..contacts.warm_start import RANK_TOLERANCE
 from . import cholesky
 from .cache import njit
+
+# Singular values below this share of the largest are rounding, not a direction of the system:
+# the active set's equations are rank-deficient by construction (a face's four corners give four
+# normal rows of rank three), and pinv's default (1e-15) keeps an exactly dependent row's
+# rounding-size singular value and with it an impulse of ~1e15 its size. ``compiled.min_norm``
+# stops its pivoted Cholesky at the same share of the largest diagonal.
+RANK_TOLERANCE = 1e-12
 
 
 @njit(cache=True, error_model="numpy")

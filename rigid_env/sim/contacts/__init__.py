@@ -1,10 +1,11 @@
-"""Contacts: detection, assembly, impacts and the solve, as stages of the step pipeline.
+"""Contacts: what a scene's contact stages are and what their kernels read.
 
-One idea per module: ``ground``, ``pairs`` and ``box_box`` detect; ``assembly`` builds the rows
-and effective masses; ``restitution`` resolves impacts in time order; ``solve`` is the
-Gauss–Seidel solve to a stated tolerance (:class:`SolverSettings`), ``warm_start`` its
-starting impulses, ``newton`` its semi-smooth Newton polish for the slow cases; ``energy`` keeps the step from gaining energy; ``stages`` wires them into
-the pipeline and reports (:class:`ContactReport` in ``scene.report["contacts"]``).
+One idea per module: ``ground``, ``pairs`` and ``box_box`` set up the detectors (candidate
+points, pair groups, shape tables; the detection kernels are ``compiled/ground.py`` and
+``compiled/pairs.py``); ``assembly`` lays the contact slots out (``Layout``); ``settings``
+holds the solve's settings (:class:`SolverSettings`); ``stages`` names the stages and defines
+the report (:class:`ContactReport` in ``state.report["contacts"]``). The physics of every
+stage is its element kernel in ``rigid_env.sim.compiled``.
 
 ``build(model, dt, settings)`` returns the contact stages of a model as two tuples: those that
 run between the integrator's velocity and position updates, and those that run after the
@@ -17,7 +18,7 @@ from __future__ import annotations
 from .assembly import Layout
 from .ground import GroundContacts
 from .pairs import PairContacts
-from .solve import SolverSettings
+from .settings import SolverSettings
 from .stages import (
     AssembleContacts,
     CollideGround,

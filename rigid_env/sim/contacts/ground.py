@@ -12,17 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotation import quat_rotate
 from ..shapes import Box, Polyhedron, Sphere
 
 
 class GroundContacts:
-    """Detection for the shaped bodies of a model: ``detect(x, q) -> (arm, gap)``.
-
-    ``arm`` (*batch, G, K, 3) is the world vector from each body's centre of mass to its contact
-    point, ``gap`` (*batch, G, K) the signed height of that point (negative = penetration);
-    the normal is +z for all.
-    """
+    """The candidate points of the shaped bodies of a model, which the ground kernel detects
+    with (``compiled/ground.py``): ``points`` (G, V, 3) in body coordinates, padded; ``foot``
+    the sphere's centre − r ẑ; ``k`` the candidates kept per body, the K lowest; ``bodies``
+    the shaped bodies' indices. The normal is +z for all."""
 
     def __init__(self, bodies):
         shaped = [i for i, b in enumerate(bodies) if b.shape is not None]
@@ -53,19 +50,4 @@ class GroundContacts:
         self.points = np.stack(padded)[:, :, :]  # (G, V, 3) body coordinates
         self.foot = np.zeros((len(shaped), 1, 3))
         self.foot[:, 0, 2] = -np.array(radii)  # sphere: centre − r ẑ
-        self.all_bodies = shaped == list(range(len(bodies)))
         self.bodies = np.array(shaped)
-
-    def detect(self, x, q):
-        if not self.all_bodies:
-            x, q = x[..., self.bodies, :], q[..., self.bodies, :]
-        arm = quat_rotate(q[..., :, None, :], self.points) + self.foot
-        gap = x[..., :, None, 2] + arm[..., 2]
-        if arm.shape[-2] > self.k:
-            # The K lowest in ascending vertex order, ties to the lower index: the contact
-            # order (Gauss–Seidel's visiting order) is the compiled detection's, whatever the
-            # partition algorithm returns.
-            lowest = np.sort(np.argsort(gap, axis=-1, kind="stable")[..., : self.k], axis=-1)
-            gap = np.take_along_axis(gap, lowest, axis=-1)
-            arm = np.take_along_axis(arm, lowest[..., None], axis=-2)
-        return arm, gap
