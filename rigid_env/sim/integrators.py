@@ -89,7 +89,7 @@ moments I₁ ≤ I₂ ≤ I₃, body angular momentum m = I Ω, |m| = G, kinetic
 
 Every quantity that can become small is formed without cancellation: G² − 2TI_j as sums of
 same-signed terms (Leroy), k'² = (I₃ − I₁)(G² − 2TI₂) / ((I₃ − I₂)(G² − 2TI₁)) from
-G² − 2TI₂ itself, the Jacobi functions with both k² and k'² (``elliptic``). Over a step the
+G² − 2TI₂ itself, the Jacobi functions with both k² and k'² (``compiled.exact_kernels``). Over a step the
 amplitude is reduced by whole periods 2K so Carlson's forms see |am| <= π/2.
 
 ``exact`` is ``splitting``'s Strang step, half kick – exact free flow (with the drift) – half
@@ -97,7 +97,7 @@ kick, with this flow as its rotation: second order, exact when no torque acts. `
 composes it by Yoshida's triple jump (Phys. Lett. A 150, 1990): fourth order; its negative
 middle step is exact too. The state keeps ω in world axes, so every step reads m = I Rᵀ ω and
 writes ω back; the written ω is refined once so that the next read returns m (see
-``splitting._read_back``).
+the splitting kernel's read-back).
 
 What is left is rounding, and near the separatrix it is amplified: an error that moves m to a
 neighbouring orbit (changes (G² − 2TI₂)/G²) shifts every later flip, ~8e4 rad per unit at

@@ -2,7 +2,7 @@
 
 ``body_data(model)`` is (n, BODY_WIDTH): mass, 1/mass, principal moments and their inverses,
 the principal frame (quaternion, its conjugate, matrix), the body-axes inertia and its inverse,
-and flags for the numpy shortcuts (diagonal inertia; body axes already principal).
+and flags for the shortcuts (diagonal inertia; body axes already principal).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ MOMENTS, INV_MOMENTS = 2, 5  # 3 each
 PRINCIPAL_QUAT, PRINCIPAL_CONJ = 8, 12  # 4 each
 AXES = 16  # 9: principal axes → body, row-major
 INERTIA, INV_INERTIA = 25, 34  # 9 each, body axes, row-major
-DIAGONAL = 43  # 1.0: the body inertia is diagonal (numpy applies it elementwise)
-PRINCIPAL = 44  # 1.0: body axes are not principal (numpy rotates by the principal frame)
+DIAGONAL = 43  # 1.0: the body inertia is diagonal (applied elementwise)
+PRINCIPAL = 44  # 1.0: body axes are not principal (rotated by the principal frame)
 BODY_WIDTH = 45
 
 

@@ -3,7 +3,7 @@
 numba stamps a cached function with its own file only. A cached caller keeps the machine code
 of the callees it inlined from other files (``contact_solve.solve`` calls
 ``contact_starts.active_set_start``) and of the module constants it read
-(``contacts.solve.NEWTON_STEPS``) as they were when it compiled; after an edit, or an upgrade
+(``contacts.settings.NEWTON_STEPS``) as they were when it compiled; after an edit, or an upgrade
 in place, the package would run stale code without a word. The locator here adds the hash of
 every ``rigid_env/sim`` source to the stamp of each function this package compiles (its kernels
 and the generated drivers), so any edit recompiles everything once. Paths and file names are

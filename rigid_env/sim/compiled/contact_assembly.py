@@ -1,13 +1,13 @@
-"""Contact rows, mirroring ``contacts.assembly``, and the data every contact kernel shares.
+"""Contact rows, and the data every contact kernel shares (``contacts.assembly`` derives the
+scaling).
 
 Per contact slot (``layout``): ``JT``, the three rows of J̃ = J M^(-1/2) (normal, t₁ along the
 sliding, t₂ = n × t₁) over the 6 coordinates of its body a, ``T1``; a body–body contact also
 ``JT_B``, body b's rows, negated (``assemble_pair``). A ground contact's normal is +z. The
-Delassus matrix A = J̃ J̃ᵀ couples contacts that share a body (its other entries are the exact
-zeros numpy's product gives). Contact velocities are J u = b·v + (r × b)·ω per row, the same quantity as
-numpy's J̃ (M^(1/2) u) to rounding. ``assemble`` also decides whether the element is engaged
-(``ENGAGED``): a contact within reach of the step's velocities; the later contact kernels skip
-an element that is not, as numpy's stages skip it.
+Delassus matrix A = J̃ J̃ᵀ couples contacts that share a body (its other entries are exact
+zeros). Contact velocities are J u = b·v + (r × b)·ω per row, J̃ (M^(1/2) u) to rounding.
+``assemble`` also decides whether the element is engaged (``ENGAGED``): a contact within reach
+of the step's velocities; the later contact kernels skip an element that is not.
 """
 
 from __future__ import annotations
@@ -63,7 +63,9 @@ O_SPRINGS = 12  # in floats: the spring table (S, forces.SPRING_WIDTH)
 O_OWNER_B, O_PAIR_A, O_PAIR_B, O_GROUPS = 13, 14, 15, 16  # in ints
 O_SHAPES = 17  # in floats
 O_SPIN = 18  # in floats: per body ‖L‖₂ = 1/√(its least principal moment) (``contact_solve``)
-O_ROUND = 19  # in ints: per contact, 1 for a sphere–sphere contact (``Rows.moved``)
+O_ROUND = (
+    19  # in ints: per contact, 1 for a sphere–sphere contact (at an impact, ``contact_impacts``)
+)
 O_BOUND = 20  # in floats: per body, the radius of its bounding sphere (0 without a shape)
 # In ints: per body, the contact row that holds its record through the step (``U1``,
 # ``PATH_Q``), −1 for a body without contacts: its first ground slot, or in a scene without
@@ -127,7 +129,7 @@ def _contact_data(scene) -> tuple | None:
         n,
         v,
     ]
-    springs = spring_table(model)  # the loads of the energy guard's W (``contacts.energy``)
+    springs = spring_table(model)  # the loads of the energy guard's W (``contact_energy``)
     groups, pair_a, pair_b, shapes = pair_tables(lay)
     tail = [
         len(groups),
@@ -323,7 +325,7 @@ def unpack(d):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def scale_matrix(q, lflat, b):
-    """R L of body b (``Rows.scale``): maps scaled angular coordinates back to ω."""
+    """R L of body b : maps scaled angular coordinates back to ω."""
     el = (
         lflat[b, 0],
         lflat[b, 1],
@@ -435,8 +437,7 @@ def delassus(cs, owner, owner_b, slots, m, rows, a):
     """A = J̃ J̃ᵀ (rows·m, rows·m) of the m contacts ``slots`` (every slot, in order, when
     ``slots`` is empty: no index array to allocate) over the first ``rows`` rows of each (3:
     all, 1: the normal block A_nn). Two contacts couple through each body they share (a
-    ground contact has one body, ``owner_b`` −1), summed in the bodies' order as numpy's
-    product."""
+    ground contact has one body, ``owner_b`` −1), summed in the bodies' order."""
     every = slots.shape[0] == 0
     # The lower triangle, mirrored: entry (q, p) is the same products summed in the same order.
     for si in range(m):
@@ -472,7 +473,7 @@ def delassus(cs, owner, owner_b, slots, m, rows, a):
 
 @njit(cache=True, error_model="numpy")
 def add_impulses(st, e, cs, owner, owner_b, lflat, rim, lam, rows, u, alpha):
-    """u += α M^(-1/2) J̃ᵀ λ (``Rows.velocity_change``) with impulses λ (rows·C); ``rows`` 3
+    """u += α M^(-1/2) J̃ᵀ λ with impulses λ (rows·C); ``rows`` 3
     (normal, t₁, t₂ per contact) or 1 (normal only). Body b of a body–body contact takes its
     rows ``JT_B``, which carry the opposite sign."""
     n = u.shape[0]
@@ -541,7 +542,7 @@ def relative_velocity(u, a, b, arm_a, arm_b):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def tangent(n, rel):
-    """``assembly.tangents``' t₁ for normal n: the sliding direction of the relative velocity,
+    """t₁ for normal n: the sliding direction of the relative velocity,
     else the unit part of (1, 0, 0), or of (0, 1, 0) for a normal near the x axis, normal to n."""
     along = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2]
     vt = (rel[0] - along * n[0], rel[1] - along * n[1], rel[2] - along * n[2])
@@ -562,12 +563,12 @@ def norm(v):
 
 @njit(cache=True, error_model="numpy")
 def assemble_pair(e, st, floats, o, i, a, b, u, moved, round_pair):
-    """``assembly.assemble`` for body–body slot i between bodies a and b, from what the
+    """The rows of body–body slot i between bodies a and b, from what the
     detection found (``DETECTED_*``, ``GAP``): both take the impulse at the midpoint of the two
     features (p_a − p_b = gap n: no impulse has a net moment), so ``ARM`` and ``ARM_B`` become
     the arms to it; t₁ follows the relative sliding there at velocities u (n, 6); body a's rows
     of J̃ go to ``JT``, body b's, negated, to ``JT_B``. ``moved``: the rows at an impact part-way
-    through the step (``Rows.moved``), the bodies translated by ``DISPLACEMENT`` since: the
+    through the step (at an impact, ``contact_impacts``), the bodies translated by ``DISPLACEMENT`` since: the
     points move apart by the relative translation, and a sphere–sphere contact (``round_pair``)
     takes the line of the centres there as its normal, its arms along it."""
     contact = st[CONTACT]
@@ -677,7 +678,7 @@ def assemble_pairs(e, st, ints, floats, o, engaged):
 # Called by the driver for every element of a contact step (``driver`` says why a call).
 @njit(cache=True, error_model="numpy")
 def assemble(e, st, d):
-    """``AssembleContacts``: engaged or not; the rows of J̃ and t₁ per contact. Indexes the
+    """The ``assemble_contacts`` stage: engaged or not; the rows of J̃ and t₁ per contact. Indexes the
     data and contact arrays in place (``offsets``): it runs for every element."""
     ints, floats = d
     o = offsets(ints)

@@ -129,7 +129,7 @@ from .steps import BODY_TORQUE
 
 @njit(cache=True, error_model="numpy", inline="always")
 def kinetic_term(floats, at, q, v, w):
-    """A body's term of ``energy.kinetic`` at orientation q of velocities v, ω (tuples), its
+    """A body's term of the kinetic energy at orientation q of velocities v, ω (tuples), its
     ``bodies`` row starting at ``floats[at]`` (indexed in place: no view)."""
     rot = quat_to_matrix(q)
     m0 = tuple9(floats, at + INERTIA)
@@ -140,7 +140,7 @@ def kinetic_term(floats, at, q, v, w):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def potential_term(floats, o, b, x):
-    """Body b's m (x · g) of ``energy.potential`` (−Σ of these), gravity ``floats[F_GRAVITY:]``."""
+    """Body b's m (x · g) (the potential energy is −Σ of these), gravity ``floats[F_GRAVITY:]``."""
     m = floats[o[O_MASS] + b]
     g = F_GRAVITY
     return m * (x[0] * floats[g] + x[1] * floats[g + 1] + x[2] * floats[g + 2])
@@ -148,7 +148,7 @@ def potential_term(floats, o, b, x):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def potential_end(has_gravity, total):
-    """``energy.potential`` from the sum of ``potential_term``: 0 without gravity."""
+    """The potential energy from the sum of ``potential_term``: 0 without gravity."""
     return -total if has_gravity else 0.0
 
 
@@ -169,7 +169,7 @@ def record_of(ints, o, b):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def depth(floats, o, ints, g, q, z):
-    """``stages.separated`` (ground) for shaped body g at orientation q and height z: its
+    """The separation (ground) of shaped body g at orientation q and height z: its
     deepest overlap, 0 if none. The deepest of its K lowest points is its deepest."""
     points = o[O_POINTS] + 3 * ints[I_V] * g
     foot = floats[o[O_FOOT] + g]
@@ -237,7 +237,7 @@ def dot3(a, b):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def applied_rate(st, e, b, v, w):
-    """Body b's applied loads' power F·v + τ·ω (``energy.load_rates``: the world force and
+    """Body b's applied loads' power F·v + τ·ω (the world force and
     torque and the body torque turned at q₀), at velocities v, ω."""
     fa, ta, tb = st[FORCE], st[TORQUE], st[BODY_TORQUE]
     turned = quat_rotate(vec4(st[Q0], e, b), vec3(tb, e, b))
@@ -247,7 +247,7 @@ def applied_rate(st, e, b, v, w):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def has_load(st, e, b):
-    """Whether body b carries an applied force, torque or body torque (``energy.load_rates``
+    """Whether body b carries an applied force, torque or body torque (
     is None without any)."""
     fa, ta, tb = st[FORCE], st[TORQUE], st[BODY_TORQUE]
     found = False
@@ -260,7 +260,7 @@ def has_load(st, e, b):
 def spring_rate(floats, o, s, st, e, v, w):
     """Spring s's elastic force's power on its body (``spring_body``) at that body's velocities
     v, ω (``forces.Springs.wrench`` at zero velocity, the start pose: its damping left out, as
-    ``energy.load_rates``); the table read in place."""
+    the table read in place."""
     at = o[O_SPRINGS] + SPRING_WIDTH * s
     b = int(floats[at + S_BODY])
     k, rest = floats[at + S_K], floats[at + S_REST]
@@ -303,7 +303,7 @@ def trapezoid_terms(floats, at, q, u0v, u0w, v, w):
 
 @njit(cache=True, error_model="numpy")
 def separated(ints, floats, o, x, q, out):
-    """``stages.separated`` at poses x (n, 3), q (n, 4) of a scene with body–body contacts:
+    """The separated positions at poses x (n, 3), q (n, 4) of a scene with body–body contacts:
     out (n, 3) ← x with each body on the ground lifted by its deepest overlap, then each pair
     pushed apart (``contact_pairs.pair_pushes``), both found at (x, q). Returns whether
     anything overlapped."""
@@ -352,8 +352,8 @@ def separated_end_potential(st, e, ints, floats, o, h, elapsed):
 # Called by the driver for every element of a contact step (``driver`` says why a call).
 @njit(cache=True, error_model="numpy")
 def limit_energy(e, st, d):
-    """``LimitEnergy`` for one engaged element: scale its velocities so that the step keeps
-    ``contacts.energy``'s invariant (1), E_end − W(u) ≤ max(E_start, E_free − W(u₁)); the
+    """The ``limit_energy`` stage for one engaged element: scale its velocities so that the step keeps
+    the module's invariant (1), E_end − W(u) ≤ max(E_start, E_free − W(u₁)); the
     impacts' path becomes the displacement. Leaves in the report row, for ``separate_contacts``,
     whether loads act (``LOADED``) and the energy removed so far."""
     report = st[REPORT]
@@ -411,7 +411,7 @@ def limit_energy(e, st, d):
     reference = max(e_start, e_free)
     room = reference - pe0 - pe_base
     slack = 1e-12 * abs(e_start) + 1e-300
-    # energy.scale_to: the largest f ∈ [0, 1] with f² ke + f lin ≤ room.
+    # The largest f ∈ [0, 1] with f² ke + f lin ≤ room.
     room_c = max(room, 0.0)
     if ke + lin <= room_c * (1 + 1e-12) + 1e-300:
         f = 1.0
@@ -449,7 +449,7 @@ def limit_energy(e, st, d):
     moved = elapsed > 0
     q = st[Q]
     disp = st[DISPLACEMENT]
-    # energy_removed's trapezoid (``energy.contact_work``) from the velocities the guard leaves,
+    # energy_removed's trapezoid from the velocities the guard leaves,
     # −½ Σ (u − u₁)ᵀ M (u₀ + u) with M at q₀, and u₁ᵀ M u for ``separate_contacts``.
     trapezoid = 0.0
     update_dot = 0.0
@@ -478,7 +478,7 @@ def limit_energy(e, st, d):
             qb = quat_multiply(back, q_path)
             for j in range(4):
                 q[e, b, j] = qb[j]
-        # The position update adds translation − elapsed v to x₀ + Δt v (``Path.displacement``).
+        # The position update adds translation − elapsed v to x₀ + Δt v .
         for j in range(3):
             disp[e, b, j] = disp[e, b, j] - elapsed * v[e, b, j] if elapsed > 0 else 0.0
     report[e, LOADED] = 1.0 if loaded else 0.0
@@ -489,8 +489,8 @@ def limit_energy(e, st, d):
 # Called by the driver for every element of a contact step (``driver`` says why a call).
 @njit(cache=True, error_model="numpy")
 def separate_contacts(e, st, d):
-    """``SeparateContacts`` for one engaged element: remove the overlap the step left and pay
-    the lift's potential energy out of the kinetic energy (``energy.pay``: keeping E − W
+    """The ``separate_contacts`` stage for one engaged element: remove the overlap the step left and pay
+    the lift's potential energy out of the kinetic energy (keeping E − W
     unchanged; what cannot be paid without loads: UNPAID), then ``energy_removed``'s separation
     share. The lift goes into x as it is found, the potential energy summed before and after:
     the operations of separating a copy, without the copy."""
@@ -539,13 +539,13 @@ def separate_contacts(e, st, d):
     for s in range(ints[I_SPRINGS]):
         b = spring_body(floats, o, s)
         rate += spring_rate(floats, o, s, st, e, vec3(v, e, b), vec3(w, e, b))
-    if not loaded:  # energy.pay
+    if not loaded:
         keep = max(ke - lift, 0.0)
         f = math.sqrt(keep / (ke if ke > 0 else 1.0))
         unpaid = max(lift - ke, 0.0)
         if unpaid > 0:
             report[e, UNPAID_ENERGY] = unpaid
-    else:  # energy.pay with loads: f² ke − f W = ke − W − lift, the larger root
+    else:  # with loads: f² ke − f W = ke − W − lift, the larger root
         work = floats[F_DT] * rate
         disc = work * work + 4 * ke * (ke - work - lift)
         f = 1.0

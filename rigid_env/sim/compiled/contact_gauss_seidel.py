@@ -1,9 +1,9 @@
-"""Projected block Gauss–Seidel of one element, mirroring ``contacts.solve.gauss_seidel`` and
-``_disk_step`` (see there for the problem, the stopping rule and the sources).
+"""Projected block Gauss–Seidel of one element, and its exact 2-D step over the friction disk
+(``disk_step``); ``contact_solve`` states the problem, the stopping rule and the sources.
 
 The tangent blocks A_tt (2×2, symmetric positive definite) are diagonalised by one Jacobi
 rotation (``eig2``: Golub & Van Loan, "Matrix Computations", 4th ed. 2013, §8.5.2, the
-symmetric Schur decomposition), where numpy calls LAPACK's ``eigh``; the two agree to rounding.
+symmetric Schur decomposition).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def eig2(a, b, c):
 # (reference counts) and arguments cost ~4 % of BoxLanding's physics.
 @njit(cache=True, error_model="numpy", inline="always")
 def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
-    """``solve._disk_step`` for one contact: the tangent impulse minimising the contact's
+    """the tangent impulse minimising the contact's
     kinetic energy over the disk |λ_t| ≤ cap (Moré & Sorensen's secular equation)."""
     r0 = (a00 * l0 + a01 * l1) - v0
     r1 = (a01 * l0 + a11 * l1) - v1
@@ -57,7 +57,7 @@ def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
     p20 = p0 * p0
     p21 = p1 * p1
     inv_cap = 1.0 / (cap if cap > 0 else 1.0)
-    for _ in range(DISK_NEWTON_STEPS):  # numpy's step, in reciprocals (3 divisions, not 6)
+    for _ in range(DISK_NEWTON_STEPS):  # in reciprocals (3 divisions, not 6)
         r0 = 1.0 / (e0 + gamma)
         r1 = 1.0 / (e1 + gamma)
         s0 = p20 * (r0 * r0)
@@ -95,10 +95,10 @@ def velocity_scale(free, target):
 def gauss_seidel(
     a, free, target, mu, lam, extra, r, max_iterations, tolerance, scale, work, decomposed=False
 ):
-    """``solve.gauss_seidel`` for one element: A (rC, rC), ``free`` (rC,), ``target`` (C,)
+    """A (rC, rC), ``free`` (rC,), ``target`` (C,)
     (−∞: out of play), ``lam`` (rC,) the start, updated in place; ``extra`` (C,) the friction
     budget (r = 3); ``scale`` the stopping test's velocity scale (``velocity_scale``, or
-    ``solve.contact_scales``' rule); ``work`` scratch of ``WORK_PER_CONTACT`` C floats;
+    the solve's over the slots with a contact point); ``work`` scratch of ``WORK_PER_CONTACT`` C floats;
     ``decomposed``: its first 6C floats already hold this A's A_tt decompositions (an earlier
     call on the same A and ``work``). Returns (sweeps, converged)."""
     c = target.shape[0]
@@ -117,8 +117,8 @@ def gauss_seidel(
             work[b0 + k] = lam[k]
         for i in range(c):
             j = r * i
-            # The contact's velocities before its update (all its rows), as numpy's einsum.
-            # Three independent sums in one loop (each in numpy's order: the same roundings).
+            # The contact's velocities before its update (all its rows).
+            # Three independent sums in one loop (each in the rows' order).
             acc0 = 0.0
             acc1 = 0.0
             acc2 = 0.0

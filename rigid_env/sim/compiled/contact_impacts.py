@@ -4,7 +4,7 @@ Restitution: impacts resolved one after another in time order within the step.
 
 A semi-implicit step stores v₁ ≈ v(t₀ + Δt/2): velocities are step means, positions follow
 x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inelastic solve
-(``solve.py``), each at the time its contact closes:
+(``contact_solve``), each at the time its contact closes:
 
 1. Per contact, its gap d (at the step's start, linearised: d + τ v_n later) closes after
    τ = d / (−v_n). The earliest closing among the *impact* contacts (ε > 0, impact speed above
@@ -20,7 +20,7 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
    instead of sinking through it. The supports act over the whole step, as a force would, so
    the closing contacts' normal acceleration (``s`` below) is taken after them.
 2. The struck contacts get Newton's law, v_n⁺ ≥ target, λ ≥ 0, complementarity (normal rows
-   only), solved by ``gauss_seidel``, together with the *loaded* supports (those that carried
+   only), solved by Gauss–Seidel, together with the *loaded* supports (those that carried
    an impulse in step 1), which hold as they did: v_n⁺ ≥ 0 touching, ≥ −d/Δt at a gap d. A box
    dropped on a box resting on the ground meets a fixed support: it leaves with ε times its
    impact speed and the lower box stays, instead of being driven into the ground. The other
@@ -32,11 +32,11 @@ x₁ = x₀ + Δt v₁. Impacts are resolved on those velocities before the inel
 
 Path. The bodies travel with the velocity of each interval: x = x₀ + Σ τₖ uₖ and
 q = Π exp(τₖ ωₖ) q₀ up to the last event, then the rest of the step with the final velocity
-(``Path``; the position update adds the difference to x₀ + Δt v as its displacement, and
+(the position update adds the difference to x₀ + Δt v as its displacement, and
 ``limit_energy`` starts its rotation at exp(−elapsed ω) q so that it ends at
 exp((Δt − elapsed) ω) q). A ball a Newton's cradle sets moving mid-step travels only the rest
 of the step, and the inelastic solve keeps the gaps where the impacts left them, over the
-remaining time. Impulses act where the bodies are at the event (``Rows.moved``): a pair's
+remaining time. Impulses act where the bodies are at the event (``contact_assembly.assemble_pair``): a pair's
 impulses at the features' midpoint there, so angular momentum is exact.
 
 The edge freeze (fixed by the supports and the path's orientation): a box at rest tilted on an
@@ -57,7 +57,7 @@ apexes fall as ε²ᵏ h whatever the impact's phase within the step.
 Energy. Each event's velocity change Δu is scaled by the largest α ∈ [0, 1] that keeps the
 kinetic energy from growing (Newton's law at several simultaneous contacts can add energy: a
 tumbling box with ε = 1); α = min(1, −2 z·dz / |dz|²) in z = M^(1/2) u coordinates. The step's
-total energy is guarded after the solve (``energy``).
+total energy is guarded after the solve (``contact_energy``).
 
 Every contact of the element, on the ground and between bodies, takes part in every event.
 The impact loop reads the normal velocities by the rows of the detection; each event's
@@ -136,7 +136,7 @@ from .rotation import cross, quat_exp, quat_multiply
 
 @njit(cache=True, error_model="numpy")
 def restitute(e, st, d):
-    """``Restitute`` for one engaged element."""
+    """The ``restitute`` stage for one engaged element."""
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
@@ -195,7 +195,7 @@ def restitute(e, st, d):
                 cs[record[b], PATH_Q + j] = q[e, b, j]
     elapsed = 0.0
     events = 0
-    held = False  # the supports' pass (restitution's docstring) ran
+    held = False  # the supports' pass (the module docstring) ran
     for _ in range(max_impacts + 2):
         first = math.inf
         for i in range(c):
@@ -244,7 +244,7 @@ def restitute(e, st, d):
             ):
                 report[e, CAPPED] = 1.0
             # The loaded supports hold through every event; the closing contacts' normal
-            # acceleration is the one the supports leave (restitution.resolve_impacts).
+            # acceleration is the one the supports leave (the module docstring).
             for i in range(c):
                 loaded[i] = cs[i, IMPULSE] > 0.0 and not eligible[i]
                 vn1 = normal_speed(cs, i, owner[i], owner_b[i], u)
@@ -259,7 +259,7 @@ def restitute(e, st, d):
         for b in range(n):
             for j in range(3):
                 disp[e, b, j] += first * u[b, j]
-        # The orientation follows the path too (``Path.orientation``), in a body's record
+        # The orientation follows the path too in a body's record
         # ``PATH_Q`` (a body without contacts keeps its ω: ``limit_energy`` turns it at once).
         for b in range(n):
             if record[b] < 0:
@@ -271,7 +271,7 @@ def restitute(e, st, d):
                 p[j] = qb[j]
         if pairs:
             # A sphere pair's gap, normal velocity and target at the touch, exactly; then
-            # every pair's rows where the bodies are now (``Rows.moved``).
+            # every pair's rows where the bodies are now (``contact_assembly.assemble_pair``).
             for i in range(c):
                 if ints[o_round + i] != 0:
                     g, vn[i], close = round_closing(cs, i, owner[i], owner_b[i], u, disp, e)
@@ -334,7 +334,7 @@ def restitute(e, st, d):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def impact_target(vn, half, at, eps, dt):
-    """``restitution.impact_targets``: the instantaneous normal velocity at the closing time
+    """the instantaneous normal velocity at the closing time
     ``at`` (the step-mean v_n plus the normal acceleration 2·half/Δt from the step's middle)
     and Newton's law on it; returns (impact speed, the step-mean target)."""
     rate = 2.0 * half / dt
@@ -364,7 +364,7 @@ def closing(cs, i, a, b, u, disp, e, round_pair):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def round_closing(cs, i, a, b, u, disp, e):
-    """``restitution.round_closing`` for sphere pair slot i: the centres' offset
+    """Sphere pair slot i at an event: the centres' offset
     d = (ra + rb + gap₀) n₀ + Δshift moves at the centres' relative velocity w, and the spheres
     touch when |d + τ w| = ra + rb (the smaller root, in the form without cancellation).
     Returns (gap, normal velocity, time to close; ∞ for a miss or moving apart)."""
@@ -490,7 +490,7 @@ def _event(
     tolerance,
     work,
 ):
-    """``restitution._event``: Newton's law ``v_n ≥ goal`` (−∞: out of play) by Gauss–Seidel
+    """Newton's law ``v_n ≥ goal`` (−∞: out of play) by Gauss–Seidel
     from zero, the impulses scaled by the largest α ∈ [0, 1] that adds no kinetic energy, added
     to u and to the contacts' ``IMPULSE``. Returns whether the solve converged."""
     n = u.shape[0]

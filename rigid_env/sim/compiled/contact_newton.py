@@ -25,7 +25,7 @@ backtracking (Armijo) line search on |F|² picks the step length. Where that sta
 ``jump`` moves λ past a change of contact mode along G's null direction (note at
 ``CRAWL_STEP``). The caller finishes with Gauss–Seidel, whose sweep test decides convergence:
 "converged" keeps the one meaning ``SolverSettings.tolerance`` states; the caller also undoes a
-polish whose next sweep changes more than the last one before it (``solve.converge``).
+polish whose next sweep changes more than the last one before it (``converge``).
 """
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def residual(a, free, target, mu, extra, lam, f, zn, zt, rho):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def jacobian(a, mu, zn, zt, rho, g):
-    """G = I − ∂P (I − R A) into ``g`` (3C, 3C), as ``newton.jacobian``."""
+    """G = I − ∂P (I − R A) into ``g`` (3C, 3C)."""
     c = zn.shape[0]
     size = 3 * c
     for i in range(c):
@@ -159,7 +159,7 @@ def jacobian(a, mu, zn, zt, rho, g):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def least_squares_step(g, f, normal, step):
-    """Δ = −(GᵀG + δ I)⁻¹ GᵀF into ``step`` (``newton.RIDGE``), by Cholesky (Golub & Van Loan,
+    """Δ = −(GᵀG + δ I)⁻¹ GᵀF into ``step`` (``RIDGE``), by Cholesky (Golub & Van Loan,
     "Matrix Computations", 4th ed. 2013, Algorithm 4.2.1); ``normal`` (n, n) scratch."""
     n = f.shape[0]
     cholesky.gram(g, n, n, normal)
@@ -214,7 +214,7 @@ def quadratic_roots(c0, c1, c2, out, n):
 
 @njit(cache=True, error_model="numpy")
 def mode_events(a, mu, extra, zn, zt, rho, x, events):
-    """The lengths s at which a contact's mode changes along λ + s x (``newton.jump``): z_n
+    """The lengths s at which a contact's mode changes along λ + s x (``jump``): z_n
     crossing 0 and |z_t| crossing ρ on either side of it. Returns their count."""
     c = zn.shape[0]
     size = x.shape[0]
@@ -259,7 +259,7 @@ def mode_events(a, mu, extra, zn, zt, rho, x, events):
 
 @njit(cache=True, error_model="numpy")
 def jump(a, free, target, mu, extra, lam, factor, phi, zn, zt, rho, trial, f2, zn2, zt2, rho2):
-    """``newton.jump`` for one element: λ (updated in place when it jumps) along ± the null
+    """λ (updated in place when it jumps) along ± the null
     direction of G, ``factor`` the Cholesky factor of the step's regularised GᵀG. Returns
     whether it jumped."""
     size = lam.shape[0]
@@ -307,7 +307,7 @@ def jump(a, free, target, mu, extra, lam, factor, phi, zn, zt, rho, trial, f2, z
 
 @njit(cache=True, error_model="numpy")
 def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
-    """``newton.newton`` for one element: at most ``budget`` steps from ``lam`` (3C,),
+    """at most ``budget`` steps from ``lam`` (3C,),
     updated in place. Returns the steps taken."""
     c = target.shape[0]
     size = 3 * c
@@ -394,7 +394,7 @@ def converge(
     work,
     decomposed=False,
 ):
-    """``solve.converge`` for one element: rounds of ``newton_after`` Gauss–Seidel sweeps
+    """rounds of ``newton_after`` Gauss–Seidel sweeps
     with Newton polishes between them, each judged by the sweep after it (undone, with no
     more polishes, if that sweep changes more than the last one before it; λ before the polish
     is kept in ``work``'s last 3C floats) (``decomposed`` as ``gauss_seidel``'s; the rounds

@@ -1,6 +1,5 @@
 """Body–body contacts of one element: detection into the contact slots, and the separation
-that ``contact_energy`` applies, mirroring ``contacts.pairs``, ``Layout.gather`` and
-``stages.separated`` for the pairs.
+that ``contact_energy`` applies, the pairs' part of the separation.
 
 The pairs' slots follow the ground's (``Layout``: G bodies × K slots, then each group of pairs
 of one kind, S slots per pair). Detection runs the kernels of ``compiled.pairs``, the one
@@ -219,7 +218,7 @@ def pair_of(ints, o, r):
 
 @njit(cache=True, error_model="numpy")
 def pair_pushes(ints, floats, o, x, q, push):
-    """``stages.separated``'s body–body part at poses x (n, 3), q (n, 4): push (n, 3) ← the sum
+    """The separation's body–body part at poses x (n, 3), q (n, 4): push (n, 3) ← the sum
     over pairs, in their order, of each pair's deepest overlap along its normal, split by mass
     (a moves by m_b/(m_a + m_b) of it, b by −m_a/(m_a + m_b): momentum unchanged). Returns
     whether a pair overlaps."""

@@ -109,7 +109,7 @@ from .registry import Kernel, register
 
 @njit(cache=True, error_model="numpy")
 def dissipative(st, e, cs, owner, owner_b, mass, linv, u, lam):
-    """``solve.dissipative``: scale λ to the most dissipative point of its ray if it would
+    """scale λ to the most dissipative point of its ray if it would
     add kinetic energy (z = M^(1/2) u, dz = J̃ᵀ λ)."""
     n = u.shape[0]
     z = np.empty((n, 6))
@@ -157,8 +157,8 @@ def solve(e, st, d):
     speed the element's kinetic energy allows (``reach_bound``), meets its target whatever
     the impulses (v_n ≥ −bound > −gap/Δt), so its impulse is zero in every solution. Its row
     would only make the dense system larger: a tower of 8 boxes has 28 box pairs, of which 7
-    touch, and a heap of 64 boxes 2016. The stopping tests' scales are still numpy's, over
-    every slot with a contact point (``solve.contact_scales``). Scenes without body–body
+    touch, and a heap of 64 boxes 2016. The stopping tests' scales are over every slot with
+    a contact point (see below). Scenes without body–body
     contacts keep every slot: a body has only its K lowest points on the ground, and their
     recorded results stay bit for bit (leaving a slot out changes the stopping test, which
     also watches its row, and the warm start, which starts it from its last impulse)."""
@@ -197,7 +197,7 @@ def solve(e, st, d):
     remaining = dt - report[e, ELAPSED]
     if ints[I_GROUPS] > 0 and report[e, ELAPSED] > 0:
         # The pairs' rows where the impacts left the bodies, t₁ from the velocities after
-        # them (``SolveContacts``: ``Rows.moved``).
+        # them (``contact_assembly.assemble_pair``).
         o_round = o[O_ROUND]
         for i in range(ints[I_GROUND] * k, c):
             assemble_pair(
@@ -370,7 +370,7 @@ def _particle(short_all, mass, shaped, k, lam_all, slots, lam):
 
 
 def report_of(tolerance: float):
-    """The ``Kernel.report`` function: ``scene.report["contacts"]`` as numpy writes it, and
+    """The ``Kernel.report`` function: ``state.report["contacts"]``, and
     its ``ContactSolverWarning`` when a solve was capped."""
 
     def report(columns: np.ndarray, counts: np.ndarray | None = None) -> dict:
@@ -392,7 +392,7 @@ def report_of(tolerance: float):
             touched = columns[:, TOUCHED] > 0
             removed = columns[:, ENERGY_REMOVED].copy()
             capped_mask = columns[:, CAPPED] > 0
-        if counts is not None:  # several steps: the most of any one step, as numpy merges
+        if counts is not None:  # several steps: the most of any one step
             engaged, capped, warmed = (int(m) for m in counts.max(axis=0))
         # ContactReport(...) without the frozen dataclass's nine object.__setattr__ calls
         # (~1.5 µs of a ~10 µs batch-1 step); the same instance, fields set once.

@@ -49,10 +49,10 @@ def particle_start(short, mass, shaped, k, lam, rows):
 
 @njit(cache=True, error_model="numpy")
 def active_set_start(short, a, free, reachable, extra, mu, lam, shortfall):
-    """``warm_start.active_set_start`` for one element: ``lam`` (3C,) ← the start; ``free``
+    """``lam`` (3C,) ← the start; ``free``
     (3C,) the free contact velocities (its tangent rows are the slip), A (3C, 3C);
     ``shortfall`` the largest |short| of the slots that hold a contact point, of which the
-    push test's tolerance is a share (``solve.contact_scales``). Returns whether the set
+    push test's tolerance is a share (``contact_solve``'s scales). Returns whether the set
     settled: an unsettled set's equality solution is no LCP solution, and the caller starts
     from the ground particle start instead (``particle_start``)."""
     c = short.shape[0]

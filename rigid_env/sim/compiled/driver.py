@@ -54,7 +54,7 @@ if (layout.STEP_TUPLE_SIZE, BODY_TORQUE) != (13, 13):
 _PACKAGE = Path(__file__).resolve().parent
 _F64 = np.dtype(np.float64)
 # Every kernel: cached, numpy's floating-point semantics (x/0 gives inf or nan, which the
-# finiteness check reports, as on the numpy path; Python's would raise ZeroDivisionError).
+# finiteness check reports; Python's would raise ZeroDivisionError).
 _JIT = '@njit(cache=True, error_model="numpy")'
 _JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
 # A function that takes the step tuple is inlined into its caller (numba IR): a call passes
@@ -114,7 +114,7 @@ def generate(
         if f.damping is not None:
             lines.append(f"from {f.module} import {f.damping} as damping_{i}")
     # The applied world loads, the body torque turned into the world at q (skipped when zero,
-    # as numpy skips None), then the force terms: the order of ``StepContext.wrench_at``.
+    # zeros for none), then the force terms, in stage order.
     lines += ["", "", _JIT, "def wrench(b, x, q, v, w, fa, ta, tb, fds):"]
     lines += [
         "    f, t = fa, ta",

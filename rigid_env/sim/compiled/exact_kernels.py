@@ -347,7 +347,7 @@ def exact_rotation(moments, qp, m, h):
 
 @njit(cache=True)
 def read_back(moments, inv, qp, pi, w):
-    """``splitting._read_back``: ω refined so that the next step reads back Π from it."""
+    """ω refined so that the next step reads back Π from it."""
     r = quat_rotate(quat_conjugate(qp), w)
     e = (
         (moments[0] * r[0] - pi[0]) * inv[0],
@@ -358,11 +358,11 @@ def read_back(moments, inv, qp, pi, w):
     return (w[0] - c[0], w[1] - c[1], w[2] - c[2])
 
 
-# --- integrator templates (``splitting._strang`` with the exact rotation) ----------------------
+# --- integrator templates (the Strang step with the exact rotation) ----------------------
 
 
 def exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
-    """``splitting._strang(..., rotation=exact_rotation)``: half kick, exact flow, half kick."""
+    """half kick, exact flow, half kick."""
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     im = bd[b, INV_MASS]
     v = kick(v, 0.5 * dt, im, f)
@@ -389,7 +389,7 @@ def exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
 
 
 def exact(e, st, d):
-    """``integrators.exact``: Strang splitting of the exact flow, second order."""
+    """Strang splitting of the exact flow, second order."""
     (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[0].shape[1]):
@@ -400,7 +400,7 @@ def exact(e, st, d):
 
 
 def exact4(e, st, d):
-    """``integrators.exact4``: Yoshida's triple jump of ``exact``."""
+    """Yoshida's triple jump of ``exact``."""
     (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
     for b in range(st[0].shape[1]):

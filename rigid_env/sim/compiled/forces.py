@@ -1,6 +1,6 @@
 """Force terms on one body, mirroring ``rigid_env.sim.forces``: ``term(b, x, q, v, w, fd)``.
 
-Each returns its world (force, torque) on body b as 3-tuples (zeros where numpy has ``None``:
+Each returns its world (force, torque) on body b as 3-tuples (zeros for a component a term does not produce:
 adding a zero changes no bit of a finite sum).
 """
 
@@ -129,7 +129,7 @@ def spring_damping_matrix(b, x, q, fd, out):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def springs(b, x, q, v, w, fd):
-    """Sum over the springs on body b, in spring order (numpy's incidence sum)."""
+    """Sum over the springs on body b, in spring order."""
     sd = fd[0]
     fx = fy = fz = tx = ty = tz = 0.0
     for s in range(sd.shape[0]):

@@ -1,9 +1,9 @@
 """Ground detection kernel, mirroring ``contacts.ground.GroundContacts.detect``.
 
 Each shaped body offers its candidate points (a sphere its foot, a box its 8 corners, a
-polyhedron its vertices, padded to a common count V by repeating the first as numpy does) and
+polyhedron its vertices, padded to a common count V by repeating the first) and
 takes the K lowest into its K contact slots, in ascending vertex order; among equal heights the
-lower vertex index wins. Detection runs at the start-of-step pose (x0, q0), as numpy's.
+lower vertex index wins. Detection runs at the start-of-step pose (x0, q0).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from .rotation import quat_rotate, quat_to_matrix
 
 
 def ground_data(bodies) -> tuple | None:
-    """(points (G, V, 3), foot heights (G,), body indices (G,), [K]) from numpy's own
-    detection set-up (one source of candidate points), or None for an unsupported shape."""
+    """(points (G, V, 3), foot heights (G,), body indices (G,), [K]) from the detector
+    set-up (``contacts.GroundContacts``, one source of candidate points), or None for an unsupported shape."""
     try:
         ground = GroundContacts(bodies)
     except ValueError:
@@ -36,7 +36,7 @@ def ground_data(bodies) -> tuple | None:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _height(r2, z, points, foot, g, i):
-    """Vertex i's height by the third row of R, for the ordering only (``GAP`` is numpy's)."""
+    """Vertex i's height by the third row of R, for the ordering only (``GAP`` is the rotated point's)."""
     return z + (
         (r2[0] * points[g, i, 0] + r2[1] * points[g, i, 1] + r2[2] * points[g, i, 2]) + foot[g]
     )
@@ -44,7 +44,7 @@ def _height(r2, z, points, foot, g, i):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _after(h, i, h0, i0):
-    """(h, i) after (h0, i0): by height, ties to the lower index (numpy's stable order)."""
+    """(h, i) after (h0, i0): by height, ties to the lower index ."""
     return h > h0 or (h == h0 and i > i0)
 
 

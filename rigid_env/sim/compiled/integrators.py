@@ -1,13 +1,13 @@
-"""Integrator kernels mirroring ``rigid_env.sim.integrators``, one body at a time.
+"""The integrators' kernels, one body at a time (``rigid_env.sim.integrators`` holds their
+records and derivations).
 
 Every integrator's stage parts are templates (see the package docstring): ``<name>`` for a
 one-part integrator (stage ``integrate``), ``<name>_velocity`` and ``<name>_position`` for a
 semi-implicit one (stages ``integrate_velocity`` / ``integrate_position``). Each is an element
 kernel with ``d = ((body data, [dt, velocity_dependent], spring table), force data)`` that
-updates the working state in place, as its numpy twin updates the step context; the operations
-follow the twin in order, so the two agree to rounding. Loads are evaluated only through
+updates the working state in place. Loads are evaluated only through
 ``wrench(b, x, q, v, w, fa, ta, tb, fds)``, which turns the body-frame torque ``tb`` into the
-world at the orientation it is given, as ``StepContext.wrench_at`` does. A new integrator module lists its
+world at the orientation it is given. A new integrator module lists its
 templates in ``TEMPLATES`` and calls ``registry.register_integrator(name, module)``.
 """
 
@@ -141,7 +141,7 @@ def translate(st, e, b, x, v, dt):
 
 @njit(cache=True, error_model="numpy")
 def kick(v, h, inverse, f):
-    """``v + h · inverse · f`` (``integrators.common.kick``)."""
+    """``v + h · inverse · f`` ."""
     a = h * inverse
     return (v[0] + a * f[0], v[1] + a * f[1], v[2] + a * f[2])
 
@@ -159,7 +159,7 @@ def axpy4(y, a, x):
 
 @njit(cache=True, error_model="numpy")
 def is_zero(t):
-    """numpy skips a term that is ``None``; zero loads are how the kernels see that case."""
+    """An absent load is zeros here."""
     return t[0] == 0.0 and t[1] == 0.0 and t[2] == 0.0
 
 
@@ -167,7 +167,7 @@ def is_zero(t):
 
 
 def euler_velocity(e, st, d):
-    """``integrators.euler.velocity``: v += Δt F/m; ω = M⁻¹ (M ω + Δt T) at the start pose."""
+    """v += Δt F/m; ω = M⁻¹ (M ω + Δt T) at the start pose."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -183,7 +183,7 @@ def euler_velocity(e, st, d):
 
 
 def euler_position(e, st, d):
-    """``integrators.euler.position_matrix``: R += Δt ω* R, Gram–Schmidt; ω = M⁻¹ L after."""
+    """R += Δt ω* R, Gram–Schmidt; ω = M⁻¹ L after."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -217,7 +217,7 @@ def euler_quat_velocity(e, st, d):
 
 
 def euler_quat_position(e, st, d):
-    """``integrators.euler.position_quat``: q̇ = ½ (ω, 0) ∘ q, renormalise; ω = M⁻¹ L after."""
+    """q̇ = ½ (ω, 0) ∘ q, renormalise; ω = M⁻¹ L after."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -233,7 +233,7 @@ def euler_quat_position(e, st, d):
 
 
 def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
-    """``rk4.integrate.derivative``; at the first stage (``start``) the wrench is the force
+    """The RK4 derivative; at the first stage (``start``) the wrench is the force
     stages' one, evaluated at the working state itself."""
     qn = quat_normalize(q)
     w = apply_inverse_inertia(bd, b, quat_to_matrix(qn), lw)
@@ -250,7 +250,7 @@ def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
 
 
 def rk4(e, st, d):
-    """``integrators.rk4.integrate``: classical RK4 on (x, q, v, L)."""
+    """classical RK4 on (x, q, v, L)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -321,7 +321,7 @@ def rk4(e, st, d):
 
 @njit(cache=True, error_model="numpy")
 def rk4_combine3(y, s, a, b, c, d):
-    """``y + s (a + 2 b + 2 c + d)``, left to right as numpy evaluates it."""
+    """``y + s (a + 2 b + 2 c + d)``, left to right."""
     return (
         y[0] + s * (a[0] + 2 * b[0] + 2 * c[0] + d[0]),
         y[1] + s * (a[1] + 2 * b[1] + 2 * c[1] + d[1]),
@@ -344,7 +344,7 @@ def rk4_combine4(y, s, a, b, c, d):
 
 @njit(cache=True, error_model="numpy")
 def _axis_flow(pa, pj, pk, ra, rj, rk, r3, phi):
-    """One exact sub-flow about principal axis a (``splitting.free_rotation``'s loop body)."""
+    """One exact sub-flow about principal axis a ."""
     c, s = math.cos(phi), math.sin(phi)
     pj, pk = c * pj + s * pk, c * pk - s * pj
     half = 0.5 * phi
@@ -355,7 +355,7 @@ def _axis_flow(pa, pj, pk, ra, rj, rk, r3, phi):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def free_rotation(inv, qp, pi, h):
-    """``splitting.free_rotation``: axes (0, ½)(1, ½)(2, 1)(1, ½)(0, ½), then renormalise.
+    """axes (0, ½)(1, ½)(2, 1)(1, ½)(0, ½), then renormalise.
     Inlined: a call can raise (numba's status), which keeps the step tuple's reference counts
     in the element loop (see ``INLINE``)."""
     p0, p1, p2 = pi
@@ -375,7 +375,7 @@ def free_rotation(inv, qp, pi, h):
 
 
 def strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
-    """``splitting._strang`` up to its closing half kick: half kick, then the drift with the
+    """The Strang step up to its closing half kick: half kick, then the drift with the
     exact free rotation."""
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     v = kick(v, 0.5 * dt, bd[b, INV_MASS], f)
@@ -395,7 +395,7 @@ def strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
 
 
 def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
-    """``splitting._strang`` without velocity-dependent forces: drift, explicit half kick."""
+    """The Strang step's end without velocity-dependent forces: drift, explicit half kick."""
     x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
     v = kick(v, 0.5 * dt, bd[b, INV_MASS], f)
@@ -404,14 +404,14 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
 
 
 def strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
-    """``splitting._strang`` with velocity-dependent forces: drift, implicit half kick."""
+    """The Strang step's end with velocity-dependent forces: drift, implicit half kick."""
     x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
     v, w = implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
     return x, q, v, w
 
 
 def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
-    """``splitting._implicit_half_kick``: (M + ½ Δt C) u⁺ = M u + ½ Δt F(x, q, 0), one 6×6
+    """(M + ½ Δt C) u⁺ = M u + ½ Δt F(x, q, 0), one 6×6
     solve, C the sum of the velocity-dependent terms' damping matrices (``damping``, defined
     with ``wrench`` in the driver)."""
     zero = (0.0, 0.0, 0.0)
@@ -439,7 +439,7 @@ def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
 
 
 def splitting(e, st, d):
-    """``integrators.splitting.integrate2``: Strang splitting, second order. Without
+    """Strang splitting, second order. Without
     velocity-dependent forces; ``splitting_damped`` is the scene's stage with them
     (``_integrator_stage``), so this one calls nothing that can raise (see ``INLINE``)."""
     (bd, prm, sd), fds = d
@@ -452,7 +452,7 @@ def splitting(e, st, d):
 
 
 def splitting4(e, st, d):
-    """``integrators.splitting.integrate4``: Yoshida's triple jump of ``splitting``."""
+    """Yoshida's triple jump of ``splitting``."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -493,7 +493,7 @@ def splitting4_damped(e, st, d):
 
 @njit(cache=True, error_model="numpy")
 def gyroscopic_newton_step(moments, omega, h):
-    """``implicit_gyro._gyroscopic_newton_step``: one Newton step, Cramer's rule."""
+    """one Newton step, Cramer's rule."""
     i1, i2, i3 = moments
     o1, o2, o3 = omega
     f1 = h * (i3 - i2) * o2 * o3
@@ -529,7 +529,7 @@ def gyro_velocity(bd, b, q, w, t, dt):
 
 
 def implicit_gyro_velocity(e, st, d):
-    """``integrators.implicit_gyro.velocity``: kick v; implicit gyroscopic step for ω."""
+    """kick v; implicit gyroscopic step for ω."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -541,7 +541,7 @@ def implicit_gyro_velocity(e, st, d):
 
 
 def implicit_gyro_position(e, st, d):
-    """``integrators.implicit_gyro.position``: translate; q ← normalise(exp(Δt ω) ∘ q)."""
+    """translate; q ← normalise(exp(Δt ω) ∘ q)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -556,8 +556,7 @@ def implicit_gyro_position(e, st, d):
 
 @njit(cache=True, error_model="numpy")
 def spring_matrices(sd, b, x, q, jkj, jcj):
-    """Add Σ Jᵀ K J and Σ Jᵀ C J of the springs on body b into (6, 6) ``jkj``, ``jcj``
-    (``implicit._spring_matrices``)."""
+    """Add Σ Jᵀ K J and Σ Jᵀ C J of the springs on body b into (6, 6) ``jkj``, ``jcj``."""
     jac = np.zeros((3, 6))
     stiff = np.zeros((3, 3))
     damp = np.zeros((3, 3))
@@ -634,7 +633,7 @@ def solve6(a, r):
 
 
 def implicit_velocity(e, st, d):
-    """``integrators.implicit.velocity``: linearised backward Euler, one 6×6 solve per body."""
+    """linearised backward Euler, one 6×6 solve per body."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     system = np.empty((6, 6))
@@ -680,7 +679,7 @@ def implicit_velocity(e, st, d):
 
 
 def implicit_position(e, st, d):
-    """``integrators.implicit.position``: translate; q ← exp(Δt ω) ∘ q (not renormalised)."""
+    """translate; q ← exp(Δt ω) ∘ q (not renormalised)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):

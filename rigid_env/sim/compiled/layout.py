@@ -37,7 +37,7 @@ CONTACT_COLUMNS = (
     ("PATH_GAP", 1),  # the gap where the step's impacts left the contact (the detected gap without)
     ("IMPULSE", 1),  # normal impulse of the step's impacts (the friction budget of the solve)
     ("U1", 6),  # in a body's first slot: its (v, ω) after the velocity update (the energy guard)
-    ("PATH_Q", 4),  # in a body's first slot: its orientation along the impacts' path (``Path``)
+    ("PATH_Q", 4),  # in a body's first slot: its orientation along the impacts' path
     # kept between the steps of one call (``steps.carry`` zeroes the columns before WARM only)
     ("WARM", 3),  # the impulse (n, t₁, t₂) the previous step's solve ended with
     ("WARM_OK", 1),  # in slot 0: 1.0 when that solve converged (``SolverSettings.warm_start``)
@@ -46,7 +46,7 @@ CONTACT_COLUMNS = (
     ("NORMAL", 3),  # the rows' normal, from body b to body a (a ground slot's is +z)
     ("ARM_B", 3),  # world vector from body b's centre of mass to that point
     ("JT_B", 18),  # body b's rows of J̃, negated (it takes the opposite impulse), as ``JT``
-    # what the detection found (the rows' record: ``Rows.moved`` starts from it at an impact)
+    # what the detection found (the rows' record: an impact moves the rows from it)
     ("DETECTED_A", 3),  # body a's arm
     ("DETECTED_B", 3),  # body b's arm
     ("DETECTED_NORMAL", 3),
@@ -86,15 +86,15 @@ REPORT_COLUMNS = (
     (
         "ELAPSED",
         1,
-    ),  # scratch, not reported: time into the step of the last impact (``Path.elapsed``)
+    ),  # scratch, not reported: time into the step of the last impact
     ("NEWTON", 1),  # Newton steps of its solve's polish
     ("WARMED", 1),  # 1.0 if its solve started from the previous step's impulses
     (
         "ENERGY_REMOVED",
         1,
-    ),  # energy (J) the contacts took out (``contacts.energy``); summed over steps
+    ),  # energy (J) the contacts took out (``contact_energy``); summed over steps
     # Scratch, not reported: what ``limit_energy`` hands ``separate_contacts``: 1.0 if loads
-    # other than gravity act (``energy.pay`` keeps E − W then), and Σ_b u₁_bᵀ M_b u_b
+    # other than gravity act (the separation keeps E − W then), and Σ_b u₁_bᵀ M_b u_b
     # (``energy_removed``).
     ("LOADED", 1),
     ("UPDATE_DOT", 1),

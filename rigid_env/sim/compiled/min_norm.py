@@ -2,8 +2,8 @@
 
 The active set's equations are rank-deficient by construction (a face's four corners give four
 normal rows of rank three; a body has six degrees of freedom however many rows its contacts
-add), and the start wants their minimum-norm solution, numpy's ``pinv`` (redundant supports
-share the load equally). LAPACK's SVD behind numba's ``pinv`` costs ~13 µs for a 12×12 system
+add), and the start wants their minimum-norm solution, ``pinv``'s (redundant supports share the
+load equally). LAPACK's SVD behind numba's ``pinv`` costs ~13 µs for a 12×12 system
 per call; this costs ~1 µs:
 
 * A symmetric positive semidefinite (the Delassus matrix's live block, no contact at its cone's
@@ -12,8 +12,8 @@ per call; this costs ~1 µs:
   A⁺ = L̃ (L̃ᵀL̃)⁻² L̃ᵀ: with the thin SVD L̃ = U S Vᵀ both sides are U S⁻² Uᵀ.
 * any other A: A⁺ b = (AᵀA)⁺ Aᵀ b (Penrose's identity A⁺ = (AᵀA)⁺ Aᵀ), the same on AᵀA.
 
-Rank: the factorisation stops when no remaining diagonal exceeds ``RANK_TOLERANCE`` (numpy's
-``rcond``, ``warm_start``) times the largest diagonal of A. An exactly dependent row leaves a
+Rank: the factorisation stops when no remaining diagonal exceeds ``RANK_TOLERANCE`` (``pinv``'s
+``rcond``) times the largest diagonal of A. An exactly dependent row leaves a
 diagonal of rounding size, ~k ε of the largest (LAPACK's ``dpstrf`` stops at k ε; here k ≤ 3C),
 so 1e-12 keeps a margin of a few hundred over it. Through AᵀA the threshold is on squared
 singular values: a direction of A weaker than 1e-6 of the largest is left out there, which only

@@ -1,8 +1,8 @@
 """Body–body detection kernels: sphere–sphere, sphere–box, box–box, one pair at a time.
 
-The one implementation of body–body detection. ``contacts.pairs`` and ``contacts.box_box`` hand
-the batch to these loops (each pair of each batch element alone), so the numpy step and any
-compiled one detect alike. The algorithms, their sources and their tie-breaking are described in
+The one implementation of body–body detection: the step's kernels call them per element, and
+``contacts.pairs`` and ``contacts.box_box`` hand a batch to these loops (each pair of each batch
+element alone) for inspection and tests. The algorithms, their sources and their tie-breaking are described in
 ``contacts.box_box`` and ``contacts.pairs``; the comments here say only what the loop form
 changes. Ties go to the lower index everywhere (as ``np.argmax``), and the clipped polygon keeps
 its entries in Sutherland–Hodgman order, then the unused ones in order, so the padding of a

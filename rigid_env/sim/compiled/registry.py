@@ -19,8 +19,7 @@ class Kernel:
     ``width``: the columns of ``layout.CONTACT_COLUMNS`` it uses (a ground scene's are fewer
     than a scene's with body–body contacts: the step zeroes every column of every slot).
     ``report``: for a kernel that writes ``report`` columns, ``report(columns, counts) -> dict``
-    turns the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` (as its numpy
-    twin writes ``ctx.report``); ``counts`` is None, or for a call of several steps the
+    turns the step's (N, REPORT_WIDTH) array into entries of ``scene.report`` ; ``counts`` is None, or for a call of several steps the
     per-step counts of engaged, capped and warm-started elements ((steps, 3),
     ``Driver.__call__``).
     """

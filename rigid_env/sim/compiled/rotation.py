@@ -1,7 +1,7 @@
 """Rotation algebra on scalar tuples for the kernels, mirroring ``rigid_env.sim.rotation``.
 
 3-vectors and quaternions (x, y, z, w) are tuples; a matrix is a 9-tuple, row-major. Each
-function repeats its numpy twin's operations in the same order, so results agree to rounding.
+function follows ``rigid_env.sim.rotation``'s batched read-outs operation for operation.
 """
 
 from __future__ import annotations
@@ -145,7 +145,7 @@ def quat_rotate(q, v):
 
 @njit(cache=True, error_model="numpy")
 def quat_exp(r):
-    """Unit quaternion of the rotation vector r, with the small-angle series of the numpy twin."""
+    """Unit quaternion of the rotation vector r, with a small-angle series."""
     theta = norm3(r)
     half = 0.5 * theta
     sinc = math.sin(half) / theta if theta > 1e-4 else 0.5 - theta**2 / 48

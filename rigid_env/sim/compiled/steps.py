@@ -42,7 +42,7 @@ BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
 @njit(cache=True, error_model="numpy", inline="always")
 def begin(e, st, tolerance):
-    """Working state = the state passed in with |q| renormalised, as ``StepContext`` (the
+    """Working state = the state passed in with |q| renormalised, (the
     scene's ``_norm2`` order: x² + y² + z² + w²), displacement zeroed (the driver hands the
     contact stages zeroed ``contact`` and ``report`` arrays). False when a quaternion is off
     unit length by more than ``tolerance`` (the scene's ``ORIENTATION_TOLERANCE``, written into

@@ -34,7 +34,7 @@ EDGE_FUDGE = 1.05  # relative preference for face axes (ODE / Bullet)
 FACE_MARGIN = 1e-3  # absolute preference, as a fraction of the smallest half-extent
 # Gap of a slot with no contact point (separated boxes whose faces do not overlap): far out of
 # reach of any step, yet finite so the solver's arithmetic on it stays finite. Its target is
-# no velocity of the problem: the solve's scales leave it out (``solve.contact_scales``).
+# no velocity of the problem: the solve's scales leave it out (``compiled.contact_solve``).
 FAR = 1e9
 
 
