@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import gc
 import math
 import os
 import signal
@@ -64,26 +65,41 @@ def run(
     clean up), each reported in one line on stderr."""
     main_thread = threading.current_thread() is threading.main_thread()  # signals live there
     previous = signal.signal(signal.SIGTERM, _raise_interrupt) if main_thread else None
+    hook = sys.unraisablehook
     try:
-        return main(argv) or 0
-    except UsageError as error:
-        print(f"{prog}: error: {error}", file=sys.stderr, flush=True)
-        return EXIT_USAGE
-    except OSError as error:
-        if not is_fault(error):
-            raise
-        print(f"{prog}: error: {fault_message(error)}", file=sys.stderr, flush=True)
-        return EXIT_FAULT
-    except KeyboardInterrupt:
+        try:
+            return main(argv) or 0
+        except UsageError as error:
+            print(f"{prog}: error: {error}", file=sys.stderr, flush=True)
+            return EXIT_USAGE
+        except OSError as error:
+            if not is_fault(error):
+                raise
+            print(f"{prog}: error: {fault_message(error)}", file=sys.stderr, flush=True)
+            return EXIT_FAULT
+        except KeyboardInterrupt:
+            _quiet_finalizers()
+        gc.collect()  # the traceback is gone: what the interrupt left half-built goes now
         print(f"{prog}: interrupted", file=sys.stderr, flush=True)
         return EXIT_INTERRUPTED
     finally:
+        sys.unraisablehook = hook
         if main_thread:
             signal.signal(signal.SIGTERM, previous)
 
 
 def _raise_interrupt(signum: int, frame: FrameType | None) -> NoReturn:
+    _quiet_finalizers()
     raise KeyboardInterrupt
+
+
+def _quiet_finalizers() -> None:
+    """After an interrupt, an object it left half-built (an LLVM module numba was compiling when
+    it came) may fail in its ``__del__`` as the stack unwinds, which Python prints as "Exception
+    ignored ..." with a traceback. That is no error of the command, and the one line ``run``
+    prints is its report: until ``run`` returns (after collecting such objects), finalizer
+    errors are not printed."""
+    sys.unraisablehook = lambda unraisable: None
 
 
 def is_fault(error: BaseException) -> bool:

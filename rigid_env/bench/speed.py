@@ -288,7 +288,7 @@ def measure(preset: str = "full", progress: report.Progress | None = None) -> di
         for engine_backend in BACKENDS:
             scene = build(factory, default, engine_backend)
             state = _initial(scene, initial, batch)
-            key = f"{name} [{engine_backend}]"
+            key = name
             stages[key] = {
                 "integrator": default,
                 "backend": scene.backend,

@@ -183,18 +183,6 @@ def gram_schmidt(m: np.ndarray) -> np.ndarray:
     return np.stack((a, b, cross(a, b)), axis=-1)
 
 
-def axis_rotation_matrix(axis: int, angle: np.ndarray) -> np.ndarray:
-    """Matrix of a rotation by ``angle`` about body axis 0, 1 or 2."""
-    c, s = np.cos(angle), np.sin(angle)
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    i, j = (axis + 1) % 3, (axis + 2) % 3
-    rows: list[list[np.ndarray]] = [[zero] * 3 for _ in range(3)]  # every entry set below
-    rows[axis][axis], rows[axis][i], rows[axis][j] = one, zero, zero
-    rows[i][axis], rows[i][i], rows[i][j] = zero, c, -s
-    rows[j][axis], rows[j][i], rows[j][j] = zero, s, c
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
-
-
 def random_quaternions(rng: np.random.Generator, shape: tuple[int, ...] = ()) -> np.ndarray:
     """Uniformly distributed rotations (normalised 4-D Gaussians), ``w >= 0``."""
     q = quat_normalize(rng.standard_normal((*shape, 4)))

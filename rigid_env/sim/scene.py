@@ -92,7 +92,7 @@ class Scene:
         only implementation; ``NUMBA_DISABLE_JIT=1`` runs the same source as plain Python (a
         debugging mode, slow).
     timer : a :class:`~rigid_env.sim.pipeline.StageTimer` that accumulates the wall time of
-        each stage (also settable later as ``scene.timer``); ``None`` times nothing.
+        a step's parts (also settable later as ``scene.timer``); ``None`` times nothing.
     contact_solver : a :class:`~rigid_env.sim.contacts.SolverSettings` (iteration cap,
         tolerance, impact cap of the contact solve); ``None`` takes its defaults.
 

@@ -39,9 +39,9 @@ def test_the_stamp_changes_with_any_simulator_source(tmp_path):
     (copy / "compiled" / "__pycache__" / "drivers").mkdir(parents=True)
     (copy / "compiled" / "__pycache__" / "drivers" / "rigid_env_driver_0.py").write_text("x = 1\n")
     assert cache.sources_hash(copy) == before
-    # A constant a kernel reads from another package (the disk step's Newton iterations).
-    solve = copy / "contacts" / "solve.py"
-    solve.write_text(solve.read_text() + "\nNEWTON_STEPS = 9\n")
+    # A constant a kernel reads from another package (the solve's Newton steps).
+    settings = copy / "contacts" / "settings.py"
+    settings.write_text(settings.read_text() + "\nNEWTON_STEPS = 9\n")
     assert cache.sources_hash(copy) != before
 
 

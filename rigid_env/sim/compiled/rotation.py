@@ -38,12 +38,6 @@ def scale(s, a):
 
 
 @njit(cache=True, error_model="numpy")
-def mul(a, b):
-    """Elementwise ``a * b``."""
-    return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
-
-
-@njit(cache=True, error_model="numpy")
 def div(a, b):
     """Elementwise ``a / b``."""
     return (a[0] / b[0], a[1] / b[1], a[2] / b[2])

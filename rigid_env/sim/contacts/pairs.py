@@ -46,8 +46,9 @@ def sphere_box(radius, half_extents):
 
 
 class PairContacts:
-    """All sphere–sphere, sphere–box and box–box pairs of a model, grouped by kind, detected
-    batched."""
+    """All sphere–sphere, sphere–box and box–box pairs of a model, grouped by kind: per group
+    its bodies a and b, its detector (whose ``params`` are its shape tables) and its slots per
+    pair."""
 
     def __init__(self, bodies):
         groups: dict[str, list[tuple[int, int]]] = {
@@ -99,21 +100,6 @@ class PairContacts:
             self.groups.append((a, b, fn, slots))
             self.kinds.append(kind)
         self.n_pairs = sum(len(g[0]) for g in self.groups)
-
-    def detect(self, x, q):
-        """List of (a, b, arm_a, arm_b, normal, gap), each with its group's slot axis."""
-        out = []
-        for a, b, fn, _ in self.groups:
-            arm_a, arm_b, n, gap = fn(x[..., a, :], q[..., a, :], x[..., b, :], q[..., b, :])
-            if gap.ndim == x.ndim - 1:  # (…, P): one point per pair, add the slot axis
-                arm_a, arm_b, n, gap = (
-                    arm_a[..., None, :],
-                    arm_b[..., None, :],
-                    n[..., None, :],
-                    gap[..., None],
-                )
-            out.append((a, b, arm_a, arm_b, n, gap))
-        return out
 
 
 __all__ = ["PairContacts"]
