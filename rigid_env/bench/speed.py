@@ -364,7 +364,7 @@ def _probe_env(tmp: str) -> dict[str, str]:
         **os.environ,
         "NUMBA_CACHE_DIR": os.path.join(tmp, "numba"),
         "RIGID_ENV_CACHE_DIR": os.path.join(tmp, "drivers"),
-        "RIGID_ENV_BACKEND": "auto",
+        "RIGID_ENV_BACKEND": "compiled",
     }
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from rigid_env import sim
 from rigid_env.bench import __main__ as cli
-from rigid_env.bench import accuracy, bounce, contact_cases, peers, problems, stability
+from rigid_env.bench import accuracy, bounce, contact_cases, peers, problems, speed, stability
 
 
 def _finite_or_none(obj) -> bool:
@@ -333,3 +333,9 @@ def test_compile_sentence_reports_processes_started_together():
     assert "within 47.2 s (one alone: 41.5 s" in sentence
     without = readme.compile_summary({"compile": rows[:4]})
     assert "together" not in without
+
+
+def test_the_compile_probe_builds_its_scenes_on_a_backend_the_scene_takes(tmp_path):
+    """The probe processes read their backend from the environment it sets (a removed one,
+    such as "auto", failed every speed run's compile probe)."""
+    assert speed._probe_env(str(tmp_path))["RIGID_ENV_BACKEND"] in sim.BACKENDS
