@@ -47,32 +47,31 @@ def best_us(fn: Callable[[], object], block_s: float, repeats: int) -> float:
     return best * 1e6
 
 
-def _empty_like_kernel(args: tuple, calling: bool) -> Callable[..., object]:
+def _empty_like_kernel(args: tuple, contacts: bool) -> Callable[..., object]:
     """A compiled function of the step's signature that does nothing, compiled for ``args``."""
     from numba import njit
 
     from rigid_env.sim.compiled.driver import _entry_point
 
-    # ``calling``: the driver's ``step`` calls kernels by address and takes ``addresses`` last.
+    # fmt: off
     @njit
-    def empty(  # type: ignore[no-untyped-def]
-        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps
+    def free(  # type: ignore[no-untyped-def]
+        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, per_element,
+        steps, integrator,
     ):
         return 0, 0, 0
 
-    # fmt: off
     @njit
-    def calling_step(  # type: ignore[no-untyped-def]
-        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots, steps,
-        addresses,
+    def contact(  # type: ignore[no-untyped-def]
+        x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, per_element,
+        steps, integrator, slots, width, addresses, warm_in, warm_out,
     ):
         return 0, 0, 0
     # fmt: on
 
-    if calling:
-        empty = calling_step  # type: ignore[assignment]
+    empty = contact if contacts else free
     empty(*args)
-    return _entry_point(empty)
+    return _entry_point(empty, tuple(empty.typeof_pyval(a) for a in args))
 
 
 def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
@@ -96,9 +95,9 @@ def breakdown(name: str, block_s: float, repeats: int) -> dict[str, float]:
     outputs = (np.empty(flat), np.empty(qflat), np.empty(flat), np.empty(flat))
     report, counts = np.zeros(rflat), np.zeros((1, 3))
     args = (x0, q0, v0, w0, *outputs, zero, zero, zero, report, counts, *drv.tail(1))
-    entry = drv._entry
+    entry = drv._entries[False]
     out["kernel"] = best_us(lambda: entry(*args), block_s, repeats)
-    empty = _empty_like_kernel(args, calling=drv.addresses is not None)
+    empty = _empty_like_kernel(args, contacts=drv.contacts)
     out["empty kernel"] = best_us(lambda: empty(*args), block_s, repeats)
     out["Python in Scene.step"] = out["Scene.step"] - out["driver call"]
     out["Python in the driver"] = out["driver call"] - out["kernel"]

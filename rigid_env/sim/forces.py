@@ -3,7 +3,7 @@
 Each term is a stage (``rigid_env.sim.pipeline.Stage``) that names its element kernel
 (``compiled/forces.py``: the wrench per body, and for a velocity-dependent term its damping
 matrix, which the symmetric splitting kicks solve with); ``velocity_dependent`` says whether
-its wrench depends on (v, ω), which picks the integrators' damped templates.
+its wrench depends on (v, ω), which picks the integrators' damped kernels.
 """
 
 from __future__ import annotations

@@ -170,9 +170,9 @@ def _checked(scene, values: dict, rows: int, full: dict) -> dict[str, np.ndarray
 
 
 def row_data(scene, bodies: list[Body], ground) -> tuple:
-    """The compiled kernels' data of ``scene`` with these bodies and ground, in the layout of
-    the scene's driver (its distinct data tuples, ``driver.share``)."""
-    from .compiled.driver import _same as same
+    """The compiled step's data of ``scene`` with these bodies and ground, in the layout of
+    the scene's driver (``driver.step_data``)."""
+    from .compiled.driver import step_data
 
     drv = scene._driver
     twin = scene.rebuilt(bodies, ground)
@@ -183,15 +183,12 @@ def row_data(scene, bodies: list[Body], ground) -> tuple:
     names = [(k.module, k.name) for k in kernels]
     if names != [(k.module, k.name) for k in drv.kernels]:
         raise RuntimeError("a parameter row's scene composed other kernels than its scene")
-    datas = [(k.data, tuple(f.data for f in forces)) if k.template else k.data for k in kernels]
-    first: dict[int, Any] = {}
-    for i, j in enumerate(drv.index):
-        if not same(first.setdefault(j, datas[i]), datas[i]):  # (the scene's sharing holds)
-            raise RuntimeError("a parameter row's kernels share their data otherwise")
-    return tuple(first[j] for j in range(len(drv.data)))
+    return step_data(tuple(kernels), tuple(forces))
 
 
 def _write_row(data, row, p: int) -> None:
+    if data is None:
+        return
     if isinstance(data, tuple):
         for d, r in zip(data, row, strict=True):
             _write_row(d, r, p)

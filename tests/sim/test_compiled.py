@@ -1,5 +1,5 @@
 """The compiled step's machinery: ground detection, determinism, backend selection, the
-driver's composition, kernel data and types, the packed layouts."""
+driver's choice of step and kernels, kernel data and types, the packed layouts."""
 
 import importlib
 
@@ -138,21 +138,50 @@ def test_body_body_scenes_without_a_ground_step_compiled():
     assert sim.Scene(balls, 0.01, contacts=sim.Material()).backend == "compiled"
 
 
-def test_composition_follows_the_stage_tuple():
-    """The generated driver calls one kernel per stage, in the scene's order; equal stage
-    tuples share one driver module."""
+def test_composition_picks_the_step_the_integrator_and_the_force_slots():
+    """The driver picks ``free_step`` or ``contact_step`` from the composition; the scene's
+    integrator tag names its kernels; the force data holds each term the scene has and None
+    for the others (which compile away); equal compositions share one compiled overload."""
+    from rigid_env.sim.compiled import forces, registry, steps
+
     a = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled", **ALL_FORCES)
     b = sim.Scene(lopsided_body(), 0.02, integrator="euler", backend="compiled", **ALL_FORCES)
-    assert a._driver.module is b._driver.module
-    body = a._driver.source.split("def step(")[1]
-    calls = [line.strip().split("(")[0] for line in body.splitlines() if "(e, st, d[" in line]
-    assert calls == ["euler_velocity", "euler_position"]
-    forces = a._driver.source.split("def wrench")[1].split("return")[0]
-    assert [f"force_{i}(" in forces for i in range(3)] == [True, True, True]
     free = sim.Scene(lopsided_body(), 0.01, integrator="euler", backend="compiled")
-    assert "force_0" not in free._driver.source
+    landing, _ = landing_scene(dt=0.01)
+    assert a._driver.step is free._driver.step is steps.free_step
+    assert landing._driver.step is steps.contact_step
+    euler = registry.INTEGRATORS["euler"]
+    assert type(a._driver.integrator) is euler.tag
+    assert [k.name for k in a._driver.kernels] == ["euler_velocity", "euler_position"]
+    assert [fd is None for fd in a._driver.data[0][1]] == [False, False, False]
+    assert free._driver.data[0][1] == (None, None, None)
+    gravity_only = landing._driver.data[0][1]
+    assert forces.TERMS[0] == "gravity" and [fd is None for fd in gravity_only] == [
+        False,
+        True,
+        True,
+    ]
     # Nothing is called by address in a free body's step: it takes no addresses at all.
-    assert free._driver.addresses is None and "addresses" not in free._driver.source
+    assert free._driver.addresses is None and not free._driver._callees
+    for scene in (a, b, free):
+        scene.step(scene.initial_state(angular_velocity=(1.0, 2.0, 3.0)))
+    assert a._driver.signature == b._driver.signature != free._driver.signature
+    entry = a._driver._entries[False]
+    assert entry is not None and entry == b._driver._entries[False]
+
+
+def test_a_step_with_an_unknown_sequence_of_kernels_is_refused():
+    """The two steps run fixed sequences: kernels in another order are a ``ValueError`` when
+    the driver is built, never a step that silently skips or reorders a stage."""
+    from rigid_env.sim.compiled.driver import Driver
+
+    landing, _ = landing_scene(dt=0.01)
+    kernels, forces = landing._driver.kernels, landing._driver.forces
+    swapped = (kernels[0], kernels[2], kernels[1], *kernels[3:])
+    with pytest.raises(ValueError, match="contact step runs"):
+        Driver(swapped, forces)
+    with pytest.raises(ValueError, match="semi-implicit"):
+        Driver(kernels[1:], forces)
 
 
 def test_compiled_kernels_call_lapack_only_if_scipy_is_a_core_dependency():
@@ -171,70 +200,57 @@ def test_compiled_kernels_call_lapack_only_if_scipy_is_a_core_dependency():
     assert scipy_core or not calls_lapack, (calls_lapack, core)
 
 
-def test_kernel_data_is_shared_only_between_equal_tuples():
-    """``share`` passes one copy of equal data tuples: the same nesting, dtypes, shapes and
-    bytes, so a kernel never sees another's values (-0.0 is not 0.0, int 1 is not float 1)."""
-    from rigid_env.sim.compiled.driver import share
-
-    a = (np.array([1.0, 0.0]), np.array([3], np.int64))
-    same = (np.array([1.0, 0.0]), np.array([3], np.int64))
-    signed = (np.array([1.0, -0.0]), np.array([3], np.int64))
-    ints = (np.array([1, 0]), np.array([3], np.int64))
-    nested = ((np.array([1.0, 0.0]),), np.array([3], np.int64))
-    unique, index = share((a, same, signed, ints, nested, a))
-    assert index == (0, 0, 1, 2, 3, 0)
-    assert unique[0] is a and unique[1] is signed and unique[2] is ints and unique[3] is nested
-
-
 def test_landing_kernels_get_their_data_from_one_shared_copy(monkeypatch):
-    """The landing scene's contact kernels and integrator halves take equal data: the driver
-    passes each distinct tuple once, and every kernel's index points at data equal to its own."""
-    from rigid_env.sim.compiled.driver import _same
-
+    """The landing step takes three data tuples: the integrator's (with the force data), the
+    ground detection's and the contact data every other contact kernel was built with; each
+    kernel gets its own, passed once (numba unboxes every array of an argument per call)."""
     monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
     scene, _ = landing_scene(dt=0.01)
     drv = scene._driver
-    assert len(drv.data) < len(drv.kernels)
-    calls = [
-        line.strip()
-        for line in drv.source.split("def step(")[1].splitlines()
-        if "(e, st, d[" in line or "e, ref, d[" in line
-    ]
-    assert len(calls) == len(drv.kernels)
-    for kernel, call in zip(drv.kernels, calls, strict=True):
-        j = int(call.split(" d[")[1].split("]")[0])
-        own = (kernel.data, tuple(f.data for f in drv.forces)) if kernel.template else kernel.data
-        assert _same(drv.data[j], own)
+    idata, ground, shared = drv.data
+    for kernel in drv.kernels:
+        if kernel.tag is not None:  # the integrator's halves: equal data, built twice
+            for mine, theirs in zip(kernel.data, idata[0], strict=True):
+                assert np.array_equal(mine, theirs)
+        elif kernel.name == "detect":
+            assert kernel.data is ground
+        else:
+            assert kernel.data is shared
+    assert idata[1] == tuple(f.data for f in drv.forces) + (None, None)
 
 
 def test_kernels_called_by_address_get_the_types_they_were_compiled_for(monkeypatch):
-    """The driver calls the contact kernels through their addresses (``calls``), passing the
+    """The step calls the contact kernels through their addresses (``calls``), passing the
     step tuple by reference: each was compiled for ``calls.signature(data)``, so the tuple the
-    driver builds must have the type ``calls.step_tuple_type`` declares (a pointer call with
+    step builds must have the type ``calls.step_tuple_type`` declares (a pointer call with
     other types would read the wrong memory), and each kernel's data the type of its own."""
-    from rigid_env.sim.compiled import calls
+    from rigid_env.sim.compiled import calls, steps
+    from rigid_env.sim.compiled.driver import CONTACT_KERNELS
 
     monkeypatch.setenv("RIGID_ENV_BACKEND", "compiled")
     scene, initial = landing_scene(dt=0.01)
     scene.step(initial(batch_shape=(2,)))
     drv = scene._driver
-    # The driver's own typing of ``st`` (a cached overload keeps no type map: compile a copy).
-    (signature,) = drv.module.step.signatures
-    fresh = numba.njit(drv.module.step.py_func)
-    fresh.compile(signature)
-    typemap = fresh.overloads[signature].type_annotation.typemap
+    # The step's own typing of ``st`` (a cached overload keeps no type map: compile a copy).
+    fresh = numba.njit(steps.contact_step.py_func)
+    fresh.compile(drv.signature)
+    typemap = fresh.overloads[drv.signature].type_annotation.typemap
     assert typemap["st"] == calls.step_tuple_type()
     assert typemap["ref"] == calls.StepRef(calls.step_tuple_type())
-    assert len(drv.addresses) == sum(not k.template for k in drv.kernels) > 0
-    assert all(drv.addresses != 0)
+    assert len(drv._callees) == 6 and sorted(CONTACT_KERNELS[k.name] for k, _ in drv._callees) == [
+        steps.GROUND,
+        steps.ASSEMBLE,
+        steps.RESTITUTE,
+        steps.SOLVE,
+        steps.LIMIT,
+        steps.SEPARATE,
+    ]
+    # Every kernel's address is where the step reads it; no body–body pairs, no address.
+    assert drv.addresses[steps.PAIRS] == 0
+    assert all(drv.addresses[CONTACT_KERNELS[k.name]] != 0 for k, _ in drv._callees)
     for kernel, data in drv._callees:
         function = getattr(importlib.import_module(kernel.module), kernel.name)
         assert calls.signature(data) in function.overloads
-    lines = drv.source.split("def step(")[1].splitlines()
-    called = [line.strip() for line in lines if line.strip().startswith("call_at(")]
-    assert [int(c.split("addresses[")[1].split("]")[0]) for c in called] == list(
-        range(len(drv.addresses))
-    )
 
 
 @pytest.mark.filterwarnings("ignore::rigid_env.sim.ContactSolverWarning")
@@ -263,10 +279,9 @@ def test_a_report_read_late_is_the_last_steps_report(monkeypatch):
 
 @pytest.mark.parametrize("integrator", ["splitting", "splitting4"])
 def test_splitting_takes_its_damped_template_only_with_velocity_dependent_forces(integrator):
-    """Without velocity-dependent forces the plain template closes with an explicit half kick
-    (and calls nothing that can raise: ``integrators.INLINE``); with damping the scene must get
-    the ``_damped`` one, whose implicit half kick the numpy twin takes (its match with numpy:
-    ``test_every_integrator_matches_numpy``)."""
+    """Without velocity-dependent forces the plain kernel closes with an explicit half kick
+    (and calls nothing that can raise: ``integrators.free_rotation``); with damping the scene
+    must get the ``_damped`` one, whose implicit half kick takes the damping matrices."""
 
     def kernels(**terms):
         scene = sim.Scene(lopsided_body(), 0.01, integrator=integrator, backend="compiled", **terms)

@@ -35,9 +35,9 @@ def test_the_stamp_changes_with_any_simulator_source(tmp_path):
     shutil.copytree(SIM, copy, ignore=shutil.ignore_patterns("__pycache__"))
     before = cache.sources_hash(copy)
     assert cache.sources_hash(copy) == before
-    # A driver generated into the cache directory is no source: the stamp stays.
-    (copy / "compiled" / "__pycache__" / "drivers").mkdir(parents=True)
-    (copy / "compiled" / "__pycache__" / "drivers" / "rigid_env_driver_0.py").write_text("x = 1\n")
+    # A file in a cache directory is no source: the stamp stays.
+    (copy / "compiled" / "__pycache__" / "rigid_env").mkdir(parents=True)
+    (copy / "compiled" / "__pycache__" / "rigid_env" / "stray.py").write_text("x = 1\n")
     assert cache.sources_hash(copy) == before
     # A constant a kernel reads from another package (the solve's Newton steps).
     settings = copy / "contacts" / "settings.py"
@@ -63,16 +63,16 @@ PROBE = """
 from rigid_env import sim
 scene = sim.Scene(sim.Body.box((0.1, 0.2, 0.3), 2.0), 0.01, backend="compiled")
 scene.step(scene.initial_state(angular_velocity=(0.1, 3.0, 0.1)))
-stats = scene._driver.module.step.stats
+stats = scene._driver.step.stats
 print(len(stats.cache_hits), len(stats.cache_misses))
 """
 
 
 def test_a_second_process_loads_the_compiled_step_from_the_cache(tmp_path):
     """The stamp must be stable across processes: a stamp that moved with every compile (a
-    hash that took in the generated drivers, which live inside the package by default)
-    recompiles every run. The drivers go to a fresh directory inside the package, as by
-    default; numba's cache to an empty one, so the first run compiles."""
+    hash that took in the files of a cache directory inside the package, where the compile
+    locks live by default) recompiles every run. The locks go to a fresh directory inside the
+    package, as by default; numba's cache to an empty one, so the first run compiles."""
     import os
     import subprocess
     import uuid
@@ -147,7 +147,7 @@ def test_a_compile_is_announced_once_and_a_load_is_not(tmp_path):
 
 
 def test_processes_that_start_together_compile_once(tmp_path):
-    """Three processes on an empty cache: one compiles, the others wait on the driver's lock and
+    """Three processes on an empty cache: one compiles, the others wait on the step's lock and
     then load what it cached (without the lock each finds the cache empty and compiles)."""
     import subprocess
 

@@ -1,5 +1,5 @@
-"""The debugging mode: with ``NUMBA_DISABLE_JIT=1`` the same kernels and the same generated
-driver run as plain Python, and give the compiled step's results.
+"""The debugging mode: with ``NUMBA_DISABLE_JIT=1`` the same kernels and the same step run as
+plain Python, and give the compiled step's results.
 
 The landing box starts 5 mm above the ground, falling at 1 m/s, tilted and spinning: its first
 steps run every contact kernel (detection, assembly, an impact within the step, the solve, the
@@ -51,7 +51,7 @@ touched = []
 for _ in range(8):
     state = scene.step(state)
     touched.append(scene.report["contacts"].touched.tolist())
-step = scene._driver.module.step
+step = scene._driver.step
 out = {
     "backend": scene.backend,
     "python": type(step).__name__ == "function",

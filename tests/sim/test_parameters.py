@@ -235,7 +235,7 @@ def test_a_bad_update_changes_nothing():
 def _leaves(data):
     if isinstance(data, tuple):
         return [leaf for d in data for leaf in _leaves(d)]
-    return [data]
+    return [] if data is None else [data]
 
 
 def test_a_one_body_scene_takes_masses_and_inertias_without_the_body_axis():

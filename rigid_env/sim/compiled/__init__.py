@@ -65,67 +65,59 @@ elements may run on threads), and ``d``, the stage's own constants: a tuple of f
 arrays built once from the scene (never sized by the batch; scalars as 1-element arrays). With
 per-element parameters (``sim.parameters``) the driver holds one such tuple per row, built by
 the same factories from a scene with that row's bodies and ground, stacked on a leading axis,
-and hands element e row e (``driver.row``): a kernel never sees the batch in its data. The
+and hands element e row e (``steps.take``): a kernel never sees the batch in its data. The
 body count n is ``st[0].shape[1]``.
 
 **A force kernel** (body level, pure) is ``term(b, x, q, v, w, fd) -> (f, t)``: body index b,
 x/v/w 3-tuples, q a 4-tuple (all world frame, the state the integrator evaluates at), ``fd`` the
 term's data tuple; it returns its world force and torque on body b as 3-tuples. The driver sums
-the scene's force stages, in stage order, onto the applied load: ``wrench(b, x, q, v, w, fa,
-ta, tb, fds) -> (f, t)`` with ``tb`` the body-frame torque, which it turns into the world at
-q (so a body torque follows the body through every evaluation), and ``fds`` the tuple of the
-terms' data. Force stages are not element
-kernels: the integrator evaluates them (at the start state, and at its own
-intermediate states).
+the scene's force terms onto the applied load: ``forces.wrench(b, x, q, v, w, fa, ta, tb, fds)
+-> (f, t)`` with ``tb`` the body-frame torque, which it turns into the world at q (so a body
+torque follows the body through every evaluation), and ``fds`` the scene's force data, a slot
+per term of ``forces.TERMS`` (gravity, damping, springs: their order in ``sim.forces``), None
+for a term the scene lacks, which numba compiles away. Force terms are not element kernels: the
+integrator evaluates them (at the start state, and at its own intermediate states).
 
-**An integrator kernel** is an element kernel that evaluates forces by calling the global name
-``wrench``, with ``d = ((body data, [dt, velocity_dependent], spring table), force data)``
-(``integrators.integrator_data``). It is written as a *template*: a plain, undecorated
-function whose source the driver copies into the generated module where ``wrench`` is defined
-(numba cannot cache a kernel that receives another kernel as an argument or closure, see
-``driver.py``); everything else it calls must be importable from its own module with
-``from module import *``, and the module lists its templates in ``TEMPLATES``. Names: ``<name>``
-for stage ``integrate``; ``<name>_velocity`` and ``<name>_position`` for the stages
-``integrate_velocity`` and ``integrate_position`` of a semi-implicit integrator (the contact
-stages run between them). Register with ``registry.register_integrator(name, module)``.
+**An integrator kernel** ``kernel(tag, e, st, d)`` is an element kernel that evaluates forces
+only through ``forces.wrench``, with ``d = ((body data, [dt, velocity_dependent], spring
+table), force data)`` (``integrators.integrator_data``); ``st`` comes by reference. It is a
+plain function: ``registry.register_integrator(name, globals(), one=...)`` (or ``velocity=``
+and ``position=`` for a semi-implicit integrator, the contact stages between them) gives the
+integrator a tag class of its own, and the step's call ``registry.integrate(tag, e, st, d)``
+(``integrate_velocity``, ``integrate_position``) resolves to its kernels by the tag's type when
+the step compiles. A ``<name>_damped`` variant is taken for velocity-dependent forces.
 
 **How a stage exposes its kernel**: ``registry.py`` maps a stage name (an entry of
 ``scene.stages``) to a factory ``factory(scene) -> Kernel | tuple[Kernel, ...] | None``;
 ``Kernel`` records the module path and function name of the element kernel, its data tuple,
-whether it is a template, and the contact slots it writes (detection). A factory returns
+an integrator part's tag, and the contact slots it writes (detection). A factory returns
 ``None`` when the scene has nothing for it to do (no contacts); a stage without a kernel is a
 ``ValueError`` when the scene is built. Force terms register likewise (``register_force``) and
-return a ``ForceKernel``. Register from your own module (e.g. ``compiled/ground_solve.py``) and
-add the module to ``backend.KERNEL_MODULES``.
+return a ``ForceKernel``. A kernel module is listed in ``backend.KERNEL_MODULES``.
 
-**The driver** (``driver.py``) composes the kernels of a scene's stage tuple: it generates the
-source of a small module whose loop over the batch runs, per element, ``steps.begin`` (working
-state, zeroed scratch), each kernel in stage order with its data (equal data tuples are passed
-once: ``driver.share``), then ``steps.finite``,
-``steps`` times (``Scene.step(..., steps=k)``; between two, ``steps.carry`` makes the result the
-next start, zeroes the contact slots and folds the report row into ``total``, so a report
-column over k steps is its maximum over them: write columns for which that is the right
-summary, as flags, counts per step and largest values are); ``step(x0, q0, v0, w0, x, q, v, w,
-force, torque, body, report, counts, data, slots, steps[, addresses][, warm_in, warm_out])``
-(``addresses`` where a kernel is called by it, the warm start's two arrays where the solve
-warm-starts: the state carries it between calls) allocates the scratch
-(displacement, contact slots, the start copies of several steps), builds ``st`` and loops over
-the batch (element e with row e of ``data`` when it has a row per element), counting the
-elements with a bad quaternion, a non-finite result and a capped solve (the scene builds its
-report dict from the columns when read, at once when a solve was capped). ``steps.begin``,
-``finite``, ``carry``, the integrator stage templates and the helpers a template module lists
-in ``INLINE`` are inlined into their caller: a call passes each array of ``st`` field by
-field, ~30-100 ns per call per element, and one that can raise keeps numba from pruning the
-reference counts of ``st`` around it (an atomic add per array, see ``steps.py``). Every other
-kernel (detection, the contact kernels) is called through its address (``calls.py``): compiled
-once, for ``calls.signature(d)``, and linked into no composition (``driver.py`` gives the
-measured trade); they take ``st`` by reference (a ``calls.StepRef``: index it with constants,
-as the tuple). A cold first step compiles them on two cores (``compile_helper.py``). ``step`` runs ``nogil``
-(with ``backend="compiled-threads"`` the driver runs it on one
-contiguous chunk of the batch per thread: numba's ``prange`` cannot take the step tuple, as
-its parallel loop bodies accept no tuples of arrays). It
-writes the module to a cache directory under a name hashed from that source and the kernel
-sources, imports it, and numba caches the compiled driver to disk (``cache=True``): one compile
-per stage tuple ever, a cached import afterwards. Composition, not flags, decides what a step
-runs.
+**The steps** (``steps.py``) are two explicit functions, each its stages in order:
+``free_step`` (the integrator) and ``contact_step`` (the velocity update, ground detection,
+pair detection, assembly, impacts, solve, energy guard, position update, separation). The
+driver (``driver.py``) picks one from the scene's composition, once, and checks that the
+scene's kernels are that step's sequence. Per element each runs ``steps.begin`` (working state,
+zeroed scratch), its stages, then ``steps.finite``, ``steps`` times (``Scene.step(...,
+steps=k)``; between two, ``steps.carry`` makes the result the next start, zeroes the contact
+slots and folds the report row into ``total``, so a report column over k steps is its maximum
+over them: write columns for which that is the right summary, as flags, counts per step and
+largest values are). A step allocates the scratch (displacement, contact slots, the start
+copies of several steps), builds ``st`` and loops over the batch (element e with row e of the
+per-element ``rows`` when given), counting the elements with a bad quaternion, a non-finite
+result and a capped solve (the scene builds its report dict from the columns when read, at
+once when a solve was capped). ``steps.begin``, ``finite`` and ``carry`` are inlined: a call
+passes each array of ``st`` field by field, ~30-100 ns per call per element. Every kernel is
+called with ``st`` by reference (a ``calls.StepRef``: index it with constants, as the tuple):
+the integrator's through its overload, detection and the contact kernels through their
+addresses (``calls.py``), compiled once each, for ``calls.signature(d)``, and linked into no
+composition (``calls.py`` gives the measured trade). A cold first step compiles them on two
+cores (``compile_helper.py``). A step runs ``nogil`` (with ``backend="compiled-threads"`` the
+driver runs it on one contiguous chunk of the batch per thread: numba's ``prange`` cannot take
+the step tuple, as its parallel loop bodies accept no tuples of arrays). numba caches each
+composition's specialisation of a step to disk (``cache=True``): one compile per composition
+ever, a load afterwards. Composition, not flags, decides what a step runs: a body in space
+compiles no force, contact or spring code.
 """

@@ -9,7 +9,7 @@ debugging mode (``tests/sim/test_disable_jit.py``).
 
 Compile cost. Each distinct stage tuple (integrator, force terms, contact stages) compiles once,
 a few seconds, on its first step; numba caches the result on disk (the package's
-``__pycache__``, or ``NUMBA_CACHE_DIR``; generated drivers in ``RIGID_ENV_CACHE_DIR`` if set),
+``__pycache__``, or ``NUMBA_CACHE_DIR``; the compile locks in ``RIGID_ENV_CACHE_DIR`` if set),
 so later processes load it in milliseconds. A CI run pays one compile per stage tuple its tests
 use, once. The per-call cost is what the batch-1 speed targets measure: a few µs of Python
 (validation, allocation of the fresh result) around one kernel call.

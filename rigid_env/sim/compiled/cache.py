@@ -6,7 +6,7 @@ of the callees it inlined from other files (``contact_solve.solve`` calls
 (``contacts.settings.NEWTON_STEPS``) as they were when it compiled; after an edit, or an upgrade
 in place, the package would run stale code without a word. The locator here adds the hash of
 every ``rigid_env/sim`` source to the stamp of each function this package compiles (its kernels
-and the generated drivers), so any edit recompiles everything once. Paths and file names are
+and steps), so any edit recompiles everything once. Paths and file names are
 numba's own (``__pycache__``, or ``NUMBA_CACHE_DIR``); only the stamp differs.
 
 numba ≥ 0.59 picks a function's locator from ``CacheImpl._locator_classes`` (or from
@@ -22,20 +22,20 @@ import hashlib
 from pathlib import Path
 
 _SIM = Path(__file__).resolve().parents[1]
-_OWN_MODULES = ("rigid_env.", "rigid_env_driver_")  # the package, its generated drivers
+_OWN_MODULES = ("rigid_env.",)
 _HASH: str | None = None
 _INSTALLED: bool | None = None
 
 
 def sources_hash(root: Path = _SIM) -> str:
-    """Hash of every ``.py`` under ``root`` (the simulator) and of where it lives, the generated
-    drivers (in ``__pycache__``) excepted."""
+    """Hash of every ``.py`` under ``root`` (the simulator) and of where it lives (none under
+    ``__pycache__``, where the caches live)."""
     global _HASH
     if root == _SIM and _HASH is not None:
         return _HASH
     h = hashlib.sha256(str(root).encode())
     for path in sorted(root.rglob("*.py")):
-        if "__pycache__" in path.parts:  # the generated drivers live there
+        if "__pycache__" in path.parts:
             continue
         h.update(str(path.relative_to(root)).encode())
         h.update(path.read_bytes())

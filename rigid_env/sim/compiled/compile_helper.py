@@ -6,7 +6,7 @@ calls by address (``calls``) are independent compiles, each cached on disk for i
 On a first step that finds some of them uncached, this process starts a helper (a fresh
 interpreter running this module) and both go through the kernels in one order, largest first
 (``compile_size``), each taking the next kernel that neither holds (a lock file per kernel in
-the drivers' cache directory) and compiling it or loading it from the cache. A kernel the other
+the compile cache directory, ``driver.cache_dir``) and compiling it or loading it from the cache. A kernel the other
 process holds is skipped, and taken at the end, when its lock frees: by then it is cached and
 loads in milliseconds.
 

@@ -1,80 +1,77 @@
 """The driver: one compiled call runs a whole step of a scene over its batch, or several.
 
+Composition. A scene's stage tuple names its kernels (``registry``); the driver picks one of
+the two compiled steps of ``steps.py`` from it, once: ``free_step`` for bodies without
+contacts, ``contact_step`` for bodies with them. Each is a plain function whose stages are
+written out in order. The integrator is chosen by the type of the scene's integrator tag
+(``registry.integrate``) and the force terms by the slots of its force data
+(``forces.wrench``), so numba compiles each composition's specialisation once and caches it
+on disk (``cache=True``); a later process loads it. The contact kernels are called through
+their addresses (``calls.call_at``): each is compiled once, for its own cache entry, and shared
+by every composition (a direct call would link its IR into every step, see ``calls``).
+
 Several steps (``Scene.step(..., steps=k)``) loop inside each element: between two,
-``steps.carry`` makes the result the next step's start (in the driver's own copies of the
-start slots), zeroes the contact slots and folds the report row into its running maximum,
-so each step computes what a call of its own would, bit for bit.
+``steps.carry`` makes the result the next step's start (in the step's own copies of the start
+slots), zeroes the contact slots and folds the report row into its running maximum, so each
+step computes what a call of its own would, bit for bit.
 
 Data. Every array of the kernels' data has a leading axis of parameter rows (``stack``): one
 row, the scene's, for every element, or one per element (``sim.Parameters``); element e's
-kernels take row e (``row``), so each element steps as a scene of its own model would.
-
-Composition. A scene's stage tuple names its kernels (``registry``); the driver generates the
-source of a module that runs them in that order, and numba caches that module's compiled code
-to disk (``cache=True``). The integrator's templates and the force terms are compiled into the
-module (a free body's step is a few hundred nanoseconds, less than a call would cost); every
-other kernel is called through its address (``calls.call_at``), compiled once for its own
-cache entry and shared by every composition. Generated source is how the integrator and the
-force terms compose with numba's cache across processes: it keys its cache on a function's file
-and bytecode, and a kernel received as a dispatcher argument or a closure variable makes every
-new process a cache miss (measured with numba 0.68). So each distinct stage tuple compiles its
-integrator and forces once, ever, and later processes import it from the cache.
-
-The generated module lives in the cache directory (``RIGID_ENV_CACHE_DIR``, else
-``compiled/__pycache__/drivers`` in the package when writable, else
-``~/.cache/rigid_env/drivers``), named by a hash of its source and of every simulator source
-(``cache.sources_hash``), so editing a kernel gives a new driver; ``cache.py`` makes numba's
-own cache of every kernel notice such an edit too.
+kernels take row e (``steps.take``), so each element steps as a scene of its own model would.
 """
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
-import inspect
 import os
-import sys
-import textwrap
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from ..state import ORIENTATION_TOLERANCE
 from . import compile_helper, layout
-from .cache import sources_hash
 from .first_call import first_call
+from .forces import force_data
 from .registry import ForceKernel, Kernel
-from .steps import BODY_TORQUE
-
-# The generated ``step`` builds the step tuple as the layout's slots then the body torque.
-if (layout.STEP_TUPLE_SIZE, BODY_TORQUE) != (13, 13):
-    raise ImportError("compiled.layout changed its step tuple: update generate()'s `st`")
+from .steps import (
+    ASSEMBLE,
+    GROUND,
+    LIMIT,
+    PAIRS,
+    RESTITUTE,
+    SEPARATE,
+    SOLVE,
+    contact_step,
+    free_step,
+)
+from .steps import take as _row
 
 _PACKAGE = Path(__file__).resolve().parent
 _F64 = np.dtype(np.float64)
-# Every kernel: cached, numpy's floating-point semantics (x/0 gives inf or nan, which the
-# finiteness check reports; Python's would raise ZeroDivisionError).
-_JIT = '@njit(cache=True, error_model="numpy")'
-_JIT_NOGIL = '@njit(cache=True, nogil=True, error_model="numpy")'
-# A function that takes the step tuple is inlined into its caller (numba IR): a call passes
-# every array of the tuple field by field (14 arrays of 11 words each), ~30-100 ns per call
-# per element, more than a free body's arithmetic (as ``integrators``' ``load``/``store``).
-# The contact kernels are called through their addresses (``calls``): each compiles once, for
-# its own cache entry, and no composition links or re-optimises it (a direct call would link
-# its IR into every driver, see ``calls``), so a new composition (other forces, another
-# integrator) compiles only its integrator and force terms. Their work per engaged element
-# (microseconds) dwarfs a call; inlined, they measured 4.6 → 4.3 µs per element step of
-# BoxLanding's physics on an earlier, quieter machine.
-_JIT_INLINE = '@njit(cache=True, error_model="numpy", inline="always")'
+# Where ``contact_step`` takes each contact kernel's address, by the kernel's name.
+CONTACT_KERNELS = {
+    "detect": GROUND,
+    "collide": PAIRS,
+    "assemble": ASSEMBLE,
+    "restitute": RESTITUTE,
+    "solve": SOLVE,
+    "limit_energy": LIMIT,
+    "separate_contacts": SEPARATE,
+}
+# The order ``contact_step`` runs them in, the integrator's halves around the first six.
+_CONTACT_ORDER = ("velocity", "detect", "collide", "assemble", "restitute", "solve",
+                  "limit_energy", "position", "separate_contacts")  # fmt: skip
 
 
 def cache_dir() -> Path:
+    """Where the first calls' locks and the compile times live (``first_call``):
+    ``RIGID_ENV_CACHE_DIR``, else ``compiled/__pycache__/rigid_env`` in the package when
+    writable, else ``~/.cache/rigid_env``. numba's own cache is in ``__pycache__`` (or
+    ``NUMBA_CACHE_DIR``)."""
     env = os.environ.get("RIGID_ENV_CACHE_DIR")
     candidates = [Path(env)] if env else []
     candidates += [
-        _PACKAGE / "__pycache__" / "drivers",
-        Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "rigid_env" / "drivers",
+        _PACKAGE / "__pycache__" / "rigid_env",
+        Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "rigid_env",
     ]
     for path in candidates:
         try:
@@ -83,233 +80,47 @@ def cache_dir() -> Path:
             continue
         if os.access(path, os.W_OK):
             return path
-    raise OSError("no writable cache directory for compiled drivers (set RIGID_ENV_CACHE_DIR)")
+    raise OSError("no writable cache directory for the compile locks (set RIGID_ENV_CACHE_DIR)")
 
 
-def generate(
-    kernels: tuple[Kernel, ...],
-    forces: tuple[ForceKernel, ...],
-    index: tuple[int, ...],
-    unique: tuple,
-    warm: bool = False,
-) -> str:
-    """The driver module's source for these kernels (in order) and force terms; kernel i
-    takes row p of ``data[index[i]]`` (``share``; ``unique``, the distinct data tuples, gives
-    their nesting: every array of ``data`` has a leading axis of parameter rows, ``stack``).
-    ``warm``: the step takes the contact solve's warm start in and out (``Driver.warm``)."""
-    lines = [
-        f"# Generated by {__name__}; do not edit. Kernel sources {sources_hash()}.",
-        "import numpy as np",
-        "from numba import njit",
-        f"from {__package__}.rotation import quat_rotate as body_to_world",
-        f"from {__package__}.steps import begin, carry, finite, fold",
-        f"from {__package__}.calls import as_ref, call_at",
-    ]
-    templates = []
-    for module in dict.fromkeys(k.module for k in kernels if k.template):
-        lines.append(f"from {module} import *  # noqa")
-        templates.append(module)
-    for i, f in enumerate(forces):
-        lines.append(f"from {f.module} import {f.name} as force_{i}")
-        if f.damping is not None:
-            lines.append(f"from {f.module} import {f.damping} as damping_{i}")
-    # The applied world loads, the body torque turned into the world at q (skipped when zero,
-    # zeros for none), then the force terms, in stage order.
-    lines += ["", "", _JIT, "def wrench(b, x, q, v, w, fa, ta, tb, fds):"]
-    lines += [
-        "    f, t = fa, ta",
-        "    if tb[0] != 0.0 or tb[1] != 0.0 or tb[2] != 0.0:",
-        "        r = body_to_world(q, tb)",
-        "        t = (t[0] + r[0], t[1] + r[1], t[2] + r[2])",
-    ]
-    for i in range(len(forces)):
-        lines += [
-            f"    fi, ti = force_{i}(b, x, q, v, w, fds[{i}])",
-            "    f = (f[0] + fi[0], f[1] + fi[1], f[2] + fi[2])",
-            "    t = (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])",
-        ]
-    lines.append("    return f, t")
-    # Row p of every array of the data (``stack``): the kernels' data of element p's model.
-    lines += ["", "", _JIT_INLINE, "def row(data, p):", f"    return {_row_of('data', unique)}"]
-    lines += ["", "", _JIT, "def damping(b, x, q, fds, out):"]
-    damped = [i for i, f in enumerate(forces) if f.damping is not None]
-    lines += [f"    damping_{i}(b, x, q, fds[{i}], out)" for i in damped] or ["    return"]
-    stages = {k.name for k in kernels if k.template}
-    for module in templates:
-        mod = importlib.import_module(module)
-        inline = stages.union(getattr(mod, "INLINE", ()))  # helpers the module wants inlined
-        for name in mod.TEMPLATES:
-            src = textwrap.dedent(inspect.getsource(getattr(mod, name)))
-            lines += ["", "", _JIT_INLINE if name in inline else _JIT, src.rstrip()]
-    # The scratch (displacement, contact slots, the running report maximum, the start copies
-    # that ``carry`` overwrites) is allocated here, per call: an allocation costs ~0.03 µs in
-    # compiled code against ~0.2-1 µs from Python plus the unboxing of each array passed in;
-    # per call, so concurrent steps of one scene (threads) cannot mix. An element's steps are
-    # written into the loop, not an inlined function: binding ``st``, ``data`` and ``total`` as
-    # its arguments costs each element an atomic incref and decref per array (see steps.py).
-    calling = any(not k.template for k in kernels)  # some kernel is called by address
-    lines += [
-        "",
-        "",
-        _JIT_NOGIL,
-        "def step(x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,",
-        # ``addresses`` only where a kernel is called by it (unboxing an array is a visible part
-        # of a free body's batch-1 step)
-        "         steps"
-        + (", addresses" if calling else "")
-        + (", warm_in, warm_out" if warm else "")
-        + "):",
-        "    size = x0.shape[0]",
-        "    disp = np.empty((size, x0.shape[1], 3))  # zeroed per element by begin",
-        f"    contact = np.zeros((size, slots, {max(k.width for k in kernels)}))",
-    ]
-    if warm:  # the impulses the state carries: the first step warm-starts from them
-        lines.append(f"    contact[:, :, {layout.WARM}:{layout.WARM_END}] = warm_in")
-    lines += [
-        "    total = report",
-        "    if steps > 1:  # the start slots carry each step's result into the next: copies",
-        "        x0, q0, v0, w0 = x0.copy(), q0.copy(), v0.copy(), w0.copy()",
-        "        total = np.zeros_like(report)",
-        "    st = (x0, q0, v0, w0, x, q, v, w, force, torque, disp, contact, report, body)",
-    ]
-    if calling:  # the called kernels take st by reference (``calls.as_ref``)
-        lines.append("    ref = as_ref(st)")
-    lines += [
-        "    counts[:] = 0.0  # (steps, 3): per step, the engaged, capped and warm-started elements",
-        "    bad_orientation = 0",
-        "    diverged = 0",
-        "    capped = 0",
-        # One row of parameters serves every element (taken once); else element e takes row e.
-        f"    per_element = {_first_array('data', unique) or 'np.zeros(1)'}.shape[0] > 1",
-        "    d = row(data, 0)",
-        "    for e in range(size):",
-        "        if per_element:",
-        "            d = row(data, e)",
-        "        # element e: its steps; between two, carry makes the result the next start",
-        "        verdict = 0",
-        "        for k in range(steps):",
-        "            if k > 0:",
-        "                carry(e, st, total)",
-        f"            if not begin(e, st, {ORIENTATION_TOLERANCE!r}):",
-        "                verdict = 1",
-        "                break",
-    ]
-    called = 0  # the kernels that are not templates, called through ``addresses`` in order
-    for i, k in enumerate(kernels):
-        if k.template:
-            lines.append(f"            {k.name}(e, st, d[{index[i]}])")
-        else:
-            lines.append(f"            call_at(addresses[{called}], e, ref, d[{index[i]}])")
-            called += 1
-    lines += [
-        "            if not finite(e, st):",
-        "                verdict = 2",
-        "                break",
-    ]
-    if any(kernel.report is not None for kernel in kernels):  # only stages that report count
-        lines += [
-            f"            if report[e, {layout.ENGAGED}] > 0.0:",
-            "                counts[k, 0] += 1.0",
-            f"            if report[e, {layout.CAPPED}] > 0.0:",
-            "                counts[k, 1] += 1.0",
-            f"            if report[e, {layout.WARMED}] > 0.0:",
-            "                counts[k, 2] += 1.0",
-        ]
-    lines += [
-        "        if verdict == 0 and steps > 1:",
-        "            fold(e, st, total)",
-        "        if verdict == 1:",
-        "            bad_orientation += 1",
-        "        elif verdict == 2:",
-        "            diverged += 1",
-        f"        if report[e, {layout.CAPPED}] > 0.0:",
-        "            capped += 1",
-    ]
-    if warm:  # and the last step's, for the state the step returns
-        lines.append(f"    warm_out[:] = contact[:, :, {layout.WARM}:{layout.WARM_END}]")
-    lines += [
-        "    return bad_orientation, diverged, capped",
-    ]
-    return "\n".join(lines) + "\n"
+def step_data(kernels: tuple[Kernel, ...], forces: tuple[ForceKernel, ...]) -> tuple:
+    """The data the step takes: (integrator data,) without contacts; with them (integrator
+    data, the ground detection's data or None, the contact data every other contact kernel
+    shares). The integrator's data is its kernels' with the force data (``force_data``)."""
+    integrator = next(k for k in kernels if k.tag is not None)
+    idata = (integrator.data, force_data(forces))
+    contact = [k for k in kernels if k.tag is None]
+    if not contact:
+        return (idata,)
+    ground = next((k.data for k in contact if k.name == "detect"), None)
+    return (idata, ground, next(k.data for k in contact if k.name != "detect"))
 
 
-def share(datas: tuple) -> tuple[tuple, tuple[int, ...]]:
-    """The distinct entries of ``datas`` (kernel data tuples) and, per entry, the index of its
-    equal in them: numba unboxes every array of an argument on every call (~0.04 µs each), and
-    the contact kernels of a landing scene get five equal copies of one data tuple, the two
-    halves of a semi-implicit integrator two. Equal means the same nesting, dtypes, shapes and
-    bytes (so -0.0 and 0.0 stay apart): a kernel sees exactly the values it was built with."""
-    unique: list = []
-    index = []
-    for d in datas:
-        for j, u in enumerate(unique):
-            if _same(d, u):
-                index.append(j)
-                break
-        else:
-            index.append(len(unique))
-            unique.append(d)
-    return tuple(unique), tuple(index)
-
-
-def _row_of(name: str, data) -> str:
-    """Source of the tuple with ``data``'s nesting whose leaves are ``<leaf>[p]``."""
-    if isinstance(data, tuple):
-        parts = [_row_of(f"{name}[{i}]", d) for i, d in enumerate(data)]
-        return "(" + "".join(f"{part}, " for part in parts) + ")"
-    return f"{name}[p]"
-
-
-def _first_array(name: str, data) -> str | None:
-    """Source naming the first array of the nested tuple ``data`` (None if it holds none)."""
-    if not isinstance(data, tuple):
-        return name
-    for i, d in enumerate(data):
-        found = _first_array(f"{name}[{i}]", d)
-        if found is not None:
-            return found
-    return None
+def _check_composition(kernels: tuple[Kernel, ...]) -> None:
+    """The kernels are one of the two steps' sequences (a bug otherwise, never a fallback)."""
+    parts = [k for k in kernels if k.tag is not None]
+    if len({k.tag for k in parts}) != 1:
+        raise ValueError(f"a step runs one integrator, got the kernels {kernels}")
+    if len(parts) == len(kernels):
+        return
+    names = [k.name for k in kernels]
+    if len(parts) == 2:
+        names[kernels.index(parts[0])], names[kernels.index(parts[1])] = "velocity", "position"
+    required = {"velocity", "assemble", "restitute", "solve", "limit_energy", "position"}
+    if names != [n for n in _CONTACT_ORDER if n in names] or not required <= set(names):
+        raise ValueError(f"the contact step runs {_CONTACT_ORDER}, not {names}")
 
 
 def stack(rows: list) -> tuple:
     """The data tuples of several models' kernels as one: each array the rows' arrays stacked
-    on a new leading axis (row p = model p's), so that ``row(data, p)`` gives each kernel the
-    data it was built with."""
+    on a new leading axis (row p = model p's; None stays None), so that ``steps.take(data,
+    p)`` gives each kernel the data it was built with."""
     first = rows[0]
+    if first is None:
+        return None  # type: ignore[return-value]
     if isinstance(first, tuple):
         return tuple(stack([r[i] for r in rows]) for i in range(len(first)))
     return np.ascontiguousarray(np.stack(rows))
-
-
-def _same(a, b) -> bool:
-    if isinstance(a, tuple) or isinstance(b, tuple):
-        return (
-            isinstance(a, tuple)
-            and isinstance(b, tuple)
-            and len(a) == len(b)
-            and all(_same(x, y) for x, y in zip(a, b, strict=True))
-        )
-    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
-        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
-    return False
-
-
-def load(source: str):
-    """Write the module once under its hash (an unchanged file keeps numba's cache valid)."""
-    key = hashlib.sha256(source.encode()).hexdigest()[:20]
-    name = f"rigid_env_driver_{key}"
-    if name in sys.modules:
-        return sys.modules[name]
-    path = cache_dir() / f"{name}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 class Driver:
@@ -323,34 +134,34 @@ class Driver:
     def __init__(self, kernels, forces, threads: bool = False, warm: bool = False):
         self.kernels = tuple(kernels)
         self.forces = tuple(forces)
-        self.data, index = share(
-            tuple(
-                (k.data, tuple(f.data for f in self.forces)) if k.template else k.data
-                for k in self.kernels
-            )
-        )
+        _check_composition(self.kernels)
+        self.integrator = next(k.tag for k in self.kernels if k.tag is not None)(0)
+        self.data = step_data(self.kernels, self.forces)
         self.slots = sum(k.slots for k in self.kernels)
-        # The kernels called through their addresses (``calls``), in stage order, with their
-        # data; ``addresses`` is filled on the first call, under the driver's lock.
+        self.width = max(k.width for k in self.kernels)
+        self.contacts = len(self.data) > 1
+        self.step = contact_step if self.contacts else free_step
+        # The kernels called through their addresses (``calls``), with their data, and where
+        # ``contact_step`` finds each; ``addresses`` is filled on the first call, under its lock.
+        _, ground, shared = self.data if self.contacts else (None, None, None)
         self._callees = tuple(
-            (k, self.data[j]) for k, j in zip(self.kernels, index, strict=True) if not k.template
+            (k, ground if k.name == "detect" else shared) for k in self.kernels if k.tag is None
         )
-        self.addresses = np.zeros(len(self._callees), dtype=np.int64) if self._callees else None
-        # The data as one row of parameters (``stack``): what a step without per-element
-        # parameters passes (``Parameters.data`` holds one row per element).
-        self.rows = stack([self.data])
-        self.index = index
+        self.addresses = np.zeros(len(CONTACT_KERNELS), np.int64) if self.contacts else None
+        # The data as the step takes it: row 0 of its ``stack``, whose arrays are C-contiguous
+        # as the rows of per-element parameters are (``Parameters.data``, one row per element).
+        self.data = _row(stack([self.data]), 0)
         # ``warm``: the contact solve warm-starts (``SolverSettings.warm_start``), so a call
         # takes the impulses the state carries and returns the last step's (``__call__``).
         self.warm = warm
-        self.source = generate(self.kernels, self.forces, index, self.data, warm)
-        self.module = load(self.source)
         self.threads = threads
         self.workers = os.cpu_count() or 1
         self._pool = None
         self._last = None
-        self._entry = None
-        self._called = False  # the first call compiles or loads (``first_call``)
+        # Per kind of call (with or without per-element rows): the step's argument types and
+        # its compiled entry point, after the first such call (``first_call``).
+        self.signatures: dict[bool, tuple] = {}
+        self._entries: dict[bool, object] = {}
         self._reporters = tuple(k.report for k in self.kernels if k.report is not None)
         self._one_step_counts = np.empty((1, 3))
 
@@ -409,80 +220,84 @@ class Driver:
         # A single step's counts are the report's own (the scene does not read these): one
         # scratch array for all such calls, shared even by concurrent ones.
         counts = self._one_step_counts if steps == 1 else np.empty((steps, 3))
-        entry = self._entry
-        if data is None:
-            data = self.rows
+        # Every element takes ``one``, or with per-element rows element e takes row e.
+        one, rows = self.data, None
+        if data is not None:
+            if _rows(data) == 1:
+                one = _row(data, 0)
+            else:
+                rows = data
+        entry = self._entries.get(rows is not None)
         if entry is None:
             args = (x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts)
-            bad = self._dispatch(args, steps, data, warm)
+            return (x, q, v, w, report, self._dispatch(args, steps, one, rows, warm), counts)
+        if not self.contacts:
+            bad = entry(
+                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, one, rows,
+                steps, self.integrator,
+            )  # fmt: skip
         else:
-            slots, addresses = self.slots, self.addresses
-            if warm is not None:
-                bad = entry(
-                    x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
-                    steps, *self._addressed(), *warm,
-                )  # fmt: skip
-            elif addresses is None:
-                bad = entry(
-                    x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
-                    steps,
-                )  # fmt: skip
-            else:
-                bad = entry(
-                    x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, data, slots,
-                    steps, addresses,
-                )  # fmt: skip
+            warm_in, warm_out = (None, None) if warm is None else warm
+            bad = entry(
+                x0, q0, v0, w0, x, q, v, w, force, torque, body, report, counts, one, rows,
+                steps, self.integrator, self.slots, self.width, self.addresses, warm_in, warm_out,
+            )  # fmt: skip
         return x, q, v, w, report, bad, counts
 
-    def _addressed(self) -> tuple:
-        return () if self.addresses is None else (self.addresses,)
+    @property
+    def signature(self) -> tuple | None:
+        """The step's argument types without per-element rows (after such a call)."""
+        return self.signatures.get(False)
 
-    def _dispatch(self, args, steps, data, warm) -> tuple[int, int, int]:
-        """The step through numba's dispatcher (which compiles or loads it on the first call,
-        under the driver's lock: ``first_call``), or over threads; a serial driver then
-        calls its compiled entry point directly."""
-        if not self._called:
+    def tail(self, steps: int, data=None, rows=None, warm=None) -> tuple:
+        """The compiled step's arguments after the arrays (``__call__`` writes them out):
+        ``data`` every element's (the scene's by default), ``rows`` None or the per-element
+        rows, ``warm`` as in ``__call__``."""
+        head = (self.data if data is None else data, rows, steps, self.integrator)
+        if not self.contacts:
+            return head
+        warm = (None, None) if warm is None else warm
+        return (*head, self.slots, self.width, self.addresses, *warm)
+
+    def _dispatch(self, args, steps, data, rows, warm) -> tuple[int, int, int]:
+        """The step through numba's dispatcher (which compiles or loads it on the first call of
+        its kind, under the composition's lock: ``first_call``), or over threads; a serial
+        driver then calls its compiled entry point directly."""
+        tail = self.tail(steps, data, rows, warm)
+        kind = rows is not None
+        if kind not in self.signatures:
+            self.signatures[kind] = tuple(self.step.typeof_pyval(a) for a in (*args, *tail))
             what = "stages " + ", ".join(dict.fromkeys(k.name for k in self.kernels))
-            kind = "contacts" if self.slots else "free"
             bad = first_call(
-                self.module.step,
-                lambda: self._resolve() or self._serial(args, steps, data, warm),
+                self.step,
+                (*args, *tail),
+                lambda: self._resolve() or self._serial(args, tail),
                 cache_dir(),
-                self.module.__name__,
-                kind,
+                "contacts" if self.contacts else "free",
                 what,
             )
-            self._called = True
-            if not self.threads:
-                self._entry = _entry_point(self.module.step)
-            return bad
-        if self.threads:
-            if args[0].shape[0] > 1:
-                return self._threaded(args, steps, data, warm)
-            return self._serial(args, steps, data, warm)
-        bad = self._serial(args, steps, data, warm)
-        self._entry = _entry_point(self.module.step)
+        elif self.threads and args[0].shape[0] > 1:
+            return self._threaded(args, steps, data, rows, warm)
+        else:
+            bad = self._serial(args, tail)
+        if not self.threads:
+            self._entries[kind] = _entry_point(self.step, self.signatures[kind])
         return bad
 
     def _resolve(self) -> None:
         """Compile or load each called kernel for its data (on two cores when several are
-        cold: ``compile_helper``) and note its address."""
-        if self.addresses is None:
+        cold: ``compile_helper``) and note its address where ``contact_step`` reads it (once)."""
+        if not self._callees or self.addresses[ASSEMBLE] != 0:
             return
         callees = [(k.module, k.name, data) for k, data in self._callees]
-        self.addresses[:] = compile_helper.addresses(callees, cache_dir())
+        found = compile_helper.addresses(callees, cache_dir())
+        for (k, _), address in zip(self._callees, found, strict=True):
+            self.addresses[CONTACT_KERNELS[k.name]] = address
 
-    def tail(self, steps: int, data=None, warm=None) -> tuple:
-        """The compiled ``step``'s arguments after the arrays (``__call__`` writes them out);
-        ``data`` and ``warm`` as in ``__call__``."""
-        if data is None:
-            data = self.rows
-        return (data, self.slots, steps, *self._addressed(), *(() if warm is None else warm))
+    def _serial(self, args, tail) -> tuple[int, int, int]:
+        return self.step(*args, *tail)
 
-    def _serial(self, args, steps, data, warm) -> tuple[int, int, int]:
-        return self.module.step(*args, *self.tail(steps, data, warm))
-
-    def _threaded(self, args, steps, data, warm) -> tuple[int, int, int]:
+    def _threaded(self, args, steps, data, rows, warm) -> tuple[int, int, int]:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
         Elements are independent, so the bits are those of the serial loop. Each chunk
         counts its elements per step into its own array; the sums go into ``counts``."""
@@ -499,12 +314,13 @@ class Driver:
         tails = [
             self.tail(
                 steps,
-                data if _rows(data) == 1 else _take(data, lo, hi),
+                data,
+                None if rows is None else _take(rows, lo, hi),
                 None if warm is None else (warm[0][lo:hi], warm[1][lo:hi]),
             )
             for lo, hi in pieces
         ]
-        step = self.module.step
+        step = self.step
         verdicts = list(
             self.pool().map(lambda job: step(*job[0], *job[1]), zip(chunks, tails, strict=True))
         )
@@ -519,6 +335,8 @@ class Driver:
 
 def _rows(data) -> int:
     """The parameter rows of stacked data (``stack``): the leading axis of its arrays."""
+    if data is None:
+        return 0
     if isinstance(data, tuple):
         return next((r for r in map(_rows, data) if r), 0)
     return data.shape[0]
@@ -526,20 +344,21 @@ def _rows(data) -> int:
 
 def _take(data, lo: int, hi: int):
     """Rows lo..hi of stacked data."""
+    if data is None:
+        return None
     if isinstance(data, tuple):
         return tuple(_take(d, lo, hi) for d in data)
     return data[lo:hi]
 
 
-def _entry_point(dispatcher):
-    """The compiled function behind a dispatcher with exactly one signature, callable without
+def _entry_point(dispatcher, signature):
+    """The compiled function behind a dispatcher for these argument types, callable without
     the dispatcher's type resolution (~1 µs of a batch-1 step). Safe here because ``_plain``
-    and the driver's own buffers give every call the same argument types; None (use the
-    dispatcher) if numba's internals differ from what this expects."""
+    and the driver's own buffers give every call of one driver the same argument types; None
+    (use the dispatcher) if numba's internals differ from what this expects."""
     try:
-        (signature,) = dispatcher.signatures
         return dispatcher.overloads[signature].entry_point
-    except (AttributeError, KeyError, ValueError):
+    except (AttributeError, KeyError, ValueError, TypeError):
         return None
 
 

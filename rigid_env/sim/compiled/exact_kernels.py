@@ -1,7 +1,7 @@
 """The exact torque-free flow per body, and the ``exact`` and ``exact4`` integrators.
 
 The method and its sources are in ``rigid_env.sim.integrators`` (Celledoni, Fassò & Säfström
-2008; Leroy's notes). ``exact`` and ``exact4`` are integrator templates (package docstring)
+2008; Leroy's notes). ``exact`` and ``exact4`` are integrator kernels (package docstring)
 built like ``splitting``'s Strang step, with the exact flow in place of the axis-by-axis free
 rotation. The elliptic functions it needs, to rounding:
 
@@ -25,8 +25,7 @@ import numpy as np
 
 from ..integrators import W0 as YOSHIDA_W0
 from ..integrators import W1 as YOSHIDA_W1
-from . import bodies  # noqa: F401 (used by the templates)
-from .bodies import (  # noqa: F401 (used by the templates)
+from .bodies import (
     INV_MASS,
     INV_MOMENTS,
     MOMENTS,
@@ -38,25 +37,17 @@ from .bodies import (  # noqa: F401 (used by the templates)
     vec4,
 )
 from .cache import njit
-from .integrators import (  # noqa: F401 (used by the templates)
+from .forces import wrench
+from .integrators import (
     axpy,
     implicit_half_kick,
     kick,
     load,
     load_body_torque,
-    matmul,
-    rotate,
-    solve6,
     store,
-    transpose,
 )
 from .registry import register_integrator
-from .rotation import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix  # noqa: F401
-
-# The composed force kernel: defined in each generated driver module, where the templates run.
-wrench = None
-
-TEMPLATES = ("implicit_half_kick", "exact_strang", "exact", "exact4")
+from .rotation import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix
 
 # Carlson (1995): stop when 4^-m Q < |A_m| with Q = (3r)^(-1/6) max|A0 - x| for R_F and
 # (r/4)^(-1/6) max|A0 - x| for R_J; the truncated series is then accurate to r.
@@ -358,9 +349,10 @@ def read_back(moments, inv, qp, pi, w):
     return (w[0] - c[0], w[1] - c[1], w[2] - c[2])
 
 
-# --- integrator templates (the Strang step with the exact rotation) ----------------------
+# --- integrator kernels (the Strang step with the exact rotation) ----------------------
 
 
+@njit(cache=True, error_model="numpy")
 def exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
     """half kick, exact flow, half kick."""
     f, t = wrench(b, x, q, v, w, fa, ta, tb, fds)
@@ -388,7 +380,7 @@ def exact_strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt, velocity_dependent):
     return x, q, v, w
 
 
-def exact(e, st, d):
+def exact(tag, e, st, d):
     """Strang splitting of the exact flow, second order."""
     (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
@@ -399,7 +391,7 @@ def exact(e, st, d):
         store(st, e, b, x, q, v, w)
 
 
-def exact4(e, st, d):
+def exact4(tag, e, st, d):
     """Yoshida's triple jump of ``exact``."""
     (bd, prm, sd), fds = d
     dt, vdep = prm[0], prm[1] != 0.0
@@ -412,5 +404,5 @@ def exact4(e, st, d):
         store(st, e, b, x, q, v, w)
 
 
-register_integrator("exact", __name__)
-register_integrator("exact4", __name__)
+register_integrator("exact", globals(), one=exact)
+register_integrator("exact4", globals(), one=exact4)

@@ -1,6 +1,7 @@
 """A driver's first call: one process compiles, the others wait and load; one line says so.
 
-numba compiles a driver's ``step`` on its first call, after the kernels it calls by address
+numba compiles a composition's step (``steps.free_step`` or ``contact_step``, specialised for
+the scene's argument types) on its first call, after the kernels it calls by address
 (``calls``; on two cores, ``compile_helper``), and caches the machine code on disk. Two hazards come with processes that start together on an empty cache
 (async vector envs, ``SubprocVecEnv``, Ray trials):
 
@@ -12,11 +13,12 @@ numba compiles a driver's ``step`` on its first call, after the kernels it calls
   overload's key and the file holds the other's machine code, which a later process loads
   without a check and runs with the wrong signature.
 
-So every first call of a driver runs under a lock of its own (``fcntl.flock`` on
-``<driver>.lock`` in the cache directory, released by the kernel if the holder dies): a driver
-compiles once, and a process that waited finds the code the holder cached and loads it in about
-a second; drivers of other compositions compile meanwhile, in parallel. The second hazard is
-closed below the drivers, for every function this package compiles: numba's index and data
+So every first call of a driver runs under the lock of its composition (``fcntl.flock`` on
+``<step>-<hash of the argument types>.lock`` in the cache directory, released by the kernel if
+the holder dies): a composition compiles once, and a process that waited finds the code the
+holder cached and loads it in about a second; other compositions compile meanwhile, in
+parallel. The second hazard is
+closed below the steps, for every function this package compiles: numba's index and data
 files are read and written under one short lock per cache directory (``cache.py``). Only the
 first call takes the driver's lock; later calls never touch it.
 
@@ -27,13 +29,14 @@ silences it), with how long the last compile of that kind took here (``compile_t
 the cache directory) or, the first time, the figure measured by the bench.
 
 With ``NUMBA_DISABLE_JIT=1`` numba's decorators return the functions themselves, so the same
-kernel source and the same generated driver run as plain Python (breakpoints and prints work
+kernel source and the same steps run as plain Python (breakpoints and prints work
 inside a kernel; ~1000× slower): no compile, no lock, no notice.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import logging
 import os
@@ -52,14 +55,25 @@ TIMES_NAME = "compile_times.json"
 USUAL_SECONDS = {"contacts": 40.0, "free": 6.0}
 
 
-def is_cached(dispatcher) -> bool:
+def is_cached(dispatcher, args=None) -> bool:
     """Whether numba's disk cache holds a fresh entry for the dispatcher's function (its index
-    loads with the current source stamp and names at least one overload). False when numba's
-    internals differ from what this expects: a notice too many, never a missing one."""
+    loads with the current source stamp and names at least one overload; with ``args``, the
+    overload for their types). False when numba's internals differ from what this expects: a
+    notice too many, never a missing one."""
     try:
-        return bool(dispatcher._cache._cache_file._load_index())
+        index = dispatcher._cache._cache_file._load_index()
+        if args is None:
+            return bool(index)
+        signature = tuple(dispatcher.typeof_pyval(a) for a in args)
+        return any(key[0] == signature for key in index)
     except Exception:  # noqa: BLE001 (any internal difference: say it compiles)
         return False
+
+
+def signature_name(dispatcher, args) -> str:
+    """A file name for the dispatcher's overload for these arguments' types."""
+    signature = str(tuple(dispatcher.typeof_pyval(a) for a in args))
+    return f"{dispatcher.__name__}-{hashlib.sha256(signature.encode()).hexdigest()[:20]}"
 
 
 @contextlib.contextmanager
@@ -85,18 +99,18 @@ def compile_lock(path: Path, what: str):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def first_call(dispatcher, call, directory: Path, name: str, kind: str, what: str):
-    """``call()`` (the first call of the driver module ``name``'s dispatcher) under the
-    driver's lock, announced if it is going to compile; the compile's duration is recorded
-    for the next announcement of ``kind`` ("contacts" or "free"). With numba's JIT disabled
-    (``NUMBA_DISABLE_JIT=1``, the debugging mode) the kernels run as plain Python: nothing
-    compiles, so there is nothing to lock, announce or record."""
+def first_call(dispatcher, args, call, directory: Path, kind: str, what: str):
+    """``call()`` (a driver's first call of the step ``dispatcher`` with ``args``) under the
+    lock of that overload, announced if it is going to compile; the compile's duration is
+    recorded for the next announcement of ``kind`` ("contacts" or "free"). With numba's JIT
+    disabled (``NUMBA_DISABLE_JIT=1``, the debugging mode) the kernels run as plain Python:
+    nothing compiles, so there is nothing to lock, announce or record."""
     from numba.core import config
 
     if config.DISABLE_JIT:
         return call()
-    with compile_lock(directory / f"{name}.lock", what):
-        if is_cached(dispatcher):
+    with compile_lock(directory / f"{signature_name(dispatcher, args)}.lock", what):
+        if is_cached(dispatcher, args):
             return call()
         LOG.warning(
             "rigid_env: compiling the simulator's step for %s, once (%s); later processes "

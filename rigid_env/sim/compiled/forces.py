@@ -1,18 +1,26 @@
-"""Force terms on one body, mirroring ``rigid_env.sim.forces``: ``term(b, x, q, v, w, fd)``.
+"""Force terms on one body (``rigid_env.sim.forces``): ``term(b, x, q, v, w, fd)``, and their sum.
 
-Each returns its world (force, torque) on body b as 3-tuples (zeros for a component a term does not produce:
-adding a zero changes no bit of a finite sum).
+Each term returns its world (force, torque) on body b as 3-tuples (zeros for a component a term
+does not produce: adding a zero changes no bit of a finite sum). A scene's force data is one
+tuple with a slot per term of ``TERMS``, in that order (``force_data``), None where the scene
+has no such term: ``wrench`` and ``damping_matrices`` are typed for it, and numba compiles no
+code for a None slot (``_optional``), so a body in space evaluates no force at all.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from ..model import Model
 from . import bodies
 from .cache import njit
 from .registry import ForceKernel, register_force
 from .rotation import cross, matmul, quat_rotate, quat_to_matrix, transpose
+
+# The force slots of a scene's data, in the order the wrench sums them (``sim.forces.build``).
+TERMS = ("gravity", "damping", "springs")
 
 _ZERO = (0.0, 0.0, 0.0)
 
@@ -141,28 +149,100 @@ def springs(b, x, q, v, w, fd):
     return (fx, fy, fz), (tx, ty, tz)
 
 
-_MODULE = __name__
+def _optional(term, matrix=False):
+    """``term`` where its slot holds data; nothing where it holds None (a scene without it).
+
+    Force terms give ``(f, t) + term(...)``; damping matrices (``matrix``) add into ``out``.
+    The overloads pick by the slot's type when the step compiles; the plain functions are what
+    runs without numba's JIT."""
+    if matrix:
+
+        def add(fd, b, x, q, out):
+            if fd is not None:
+                term(b, x, q, fd, out)
+
+        @overload(add)
+        def _add(fd, b, x, q, out):
+            if isinstance(fd, types.NoneType):
+                return lambda fd, b, x, q, out: None
+            return lambda fd, b, x, q, out: term(b, x, q, fd, out)
+
+        return add
+
+    def plus(fd, b, x, q, v, w, f, t):
+        if fd is None:
+            return f, t
+        fi, ti = term(b, x, q, v, w, fd)
+        return (f[0] + fi[0], f[1] + fi[1], f[2] + fi[2]), (
+            t[0] + ti[0],
+            t[1] + ti[1],
+            t[2] + ti[2],
+        )
+
+    @overload(plus)
+    def _plus(fd, b, x, q, v, w, f, t):
+        if isinstance(fd, types.NoneType):
+            return lambda fd, b, x, q, v, w, f, t: (f, t)
+
+        def impl(fd, b, x, q, v, w, f, t):
+            fi, ti = term(b, x, q, v, w, fd)
+            f = (f[0] + fi[0], f[1] + fi[1], f[2] + fi[2])
+            return f, (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])
+
+        return impl
+
+    return plus
+
+
+plus_gravity = _optional(gravity)
+plus_damping = _optional(damping)
+plus_springs = _optional(springs)
+add_damping = _optional(damping_matrix, matrix=True)
+add_spring_damping = _optional(spring_damping_matrix, matrix=True)
+
+
+@njit(cache=True, error_model="numpy")
+def wrench(b, x, q, v, w, fa, ta, tb, fds):
+    """The world (force, torque) on body b at state (x, q, v, w): the applied world loads
+    ``fa``, ``ta``, the body-frame torque ``tb`` turned into the world at q (skipped when zero),
+    then each term of the scene's force data ``fds`` (``TERMS`` order)."""
+    f, t = fa, ta
+    if tb[0] != 0.0 or tb[1] != 0.0 or tb[2] != 0.0:
+        r = quat_rotate(q, tb)
+        t = (t[0] + r[0], t[1] + r[1], t[2] + r[2])
+    f, t = plus_gravity(fds[0], b, x, q, v, w, f, t)
+    f, t = plus_damping(fds[1], b, x, q, v, w, f, t)
+    return plus_springs(fds[2], b, x, q, v, w, f, t)
+
+
+@njit(cache=True, error_model="numpy")
+def damping_matrices(b, x, q, fds, out):
+    """Add the damping matrices C of the velocity-dependent terms on body b into ``out``
+    (``(F, T) = (F, T)|ᵤ₌₀ − C u``, u = (v, ω)); an undamped spring adds nothing."""
+    add_damping(fds[1], b, x, q, out)
+    add_spring_damping(fds[2], b, x, q, out)
+
+
+def force_data(forces) -> tuple:
+    """The scene's force data: one slot per term of ``TERMS`` (its ``ForceKernel`` data, or
+    None)."""
+    given = {f.name: f.data for f in forces}
+    return tuple(given.get(name) for name in TERMS)
 
 
 @register_force("gravity")
 def _gravity(scene):
     weight = np.ascontiguousarray(scene.model.mass[:, None] * scene.model.gravity)
-    return ForceKernel(_MODULE, "gravity", (weight,))
+    return ForceKernel("gravity", (weight,))
 
 
 @register_force("damping")
 def _damping(scene):
     m = scene.model
     rates = np.array([m.linear_damping, m.angular_damping])
-    return ForceKernel(_MODULE, "damping", (bodies.body_data(m), rates), damping="damping_matrix")
+    return ForceKernel("damping", (bodies.body_data(m), rates))
 
 
 @register_force("springs")
 def _springs(scene):
-    damped = any(sp.damping for sp in scene.model.springs)
-    return ForceKernel(
-        _MODULE,
-        "springs",
-        (spring_table(scene.model),),
-        damping="spring_damping_matrix" if damped else None,
-    )
+    return ForceKernel("springs", (spring_table(scene.model),))

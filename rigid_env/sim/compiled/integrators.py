@@ -1,19 +1,18 @@
 """The integrators' kernels, one body at a time (``rigid_env.sim.integrators`` holds their
 records and derivations).
 
-Every integrator's stage parts are templates (see the package docstring): ``<name>`` for a
-one-part integrator (stage ``integrate``), ``<name>_velocity`` and ``<name>_position`` for a
-semi-implicit one (stages ``integrate_velocity`` / ``integrate_position``). Each is an element
-kernel with ``d = ((body data, [dt, velocity_dependent], spring table), force data)`` that
-updates the working state in place. Loads are evaluated only through
-``wrench(b, x, q, v, w, fa, ta, tb, fds)``, which turns the body-frame torque ``tb`` into the
-world at the orientation it is given. A new integrator module lists its
-templates in ``TEMPLATES`` and calls ``registry.register_integrator(name, module)``.
+Each integrator registers its element kernels (``registry.register_integrator``): ``<name>``
+for a one-part integrator (stage ``integrate``), ``<name>_velocity`` and ``<name>_position``
+for a semi-implicit one (stages ``integrate_velocity`` / ``integrate_position``), with
+``d = ((body data, [dt, velocity_dependent], spring table), force data)``; each updates the
+working state in place. Loads are evaluated only through ``forces.wrench(b, x, q, v, w, fa,
+ta, tb, fds)``, which turns the body-frame torque ``tb`` into the world at the orientation it
+is given; numba compiles a kernel once per type of the force data ``fds``, so a scene's
+kernels evaluate exactly its force terms.
 """
 
 from __future__ import annotations
 
-import importlib
 import math
 
 import numpy as np
@@ -34,7 +33,8 @@ from .bodies import (
     vec4,
 )
 from .cache import njit
-from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_C, S_K, S_REST, spring_table
+from .forces import S_ANCHOR, S_ATTACH, S_BODY, S_C, S_K, S_REST, spring_table, wrench
+from .forces import damping_matrices as damping
 from .layout import DISPLACEMENT, FORCE, TORQUE, Q, V, W, X
 from .registry import INTEGRATORS, Kernel, register, register_integrator
 from .rotation import (
@@ -55,37 +55,6 @@ from .rotation import (
     transpose,
 )
 from .steps import BODY_TORQUE
-
-# The composed force kernel and damping matrix: defined in each generated driver module, where
-# the templates run.
-wrench = damping = None
-
-TEMPLATES = (
-    "euler_velocity",
-    "euler_position",
-    "euler_quat_velocity",
-    "euler_quat_position",
-    "rk4_derivative",
-    "rk4",
-    "strang_drift",
-    "strang",
-    "strang_damped",
-    "implicit_half_kick",
-    "splitting",
-    "splitting4",
-    "splitting_damped",
-    "splitting4_damped",
-    "implicit_gyro_velocity",
-    "implicit_gyro_position",
-    "implicit_velocity",
-    "implicit_position",
-)
-# Templates the driver inlines into their callers (numba IR) although they are not stages: a
-# call that can raise (numba's status return) left in the element loop keeps numba's
-# reference-count pruning from removing the step tuple's incref/decref pairs around it (see
-# steps.py for what they cost).
-INLINE = ("strang_drift", "strang")
-
 
 # --- shared pieces ----------------------------------------------------------------------------
 # The helpers that take the step tuple are inlined (numba IR): called, each costs ~100 ns per
@@ -166,7 +135,7 @@ def is_zero(t):
 # --- euler, euler_quat ------------------------------------------------------------------------
 
 
-def euler_velocity(e, st, d):
+def euler_velocity(tag, e, st, d):
     """v += Δt F/m; ω = M⁻¹ (M ω + Δt T) at the start pose."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -182,7 +151,7 @@ def euler_velocity(e, st, d):
         store_velocity(st, e, b, v, w)
 
 
-def euler_position(e, st, d):
+def euler_position(tag, e, st, d):
     """R += Δt ω* R, Gram–Schmidt; ω = M⁻¹ L after."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -211,12 +180,7 @@ def euler_position(e, st, d):
         store(st, e, b, x, q, v, apply_inverse_inertia(bd, b, rot, lw))
 
 
-def euler_quat_velocity(e, st, d):
-    """``integrators.euler.velocity`` (shared by both Euler variants)."""
-    euler_velocity(e, st, d)
-
-
-def euler_quat_position(e, st, d):
+def euler_quat_position(tag, e, st, d):
     """q̇ = ½ (ω, 0) ∘ q, renormalise; ω = M⁻¹ L after."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -232,6 +196,7 @@ def euler_quat_position(e, st, d):
 # --- rk4 --------------------------------------------------------------------------------------
 
 
+@njit(cache=True, error_model="numpy")
 def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
     """The RK4 derivative; at the first stage (``start``) the wrench is the force
     stages' one, evaluated at the working state itself."""
@@ -249,7 +214,7 @@ def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
     return v, qdot, vdot, ldot
 
 
-def rk4(e, st, d):
+def rk4(tag, e, st, d):
     """classical RK4 on (x, q, v, L)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -357,7 +322,7 @@ def _axis_flow(pa, pj, pk, ra, rj, rk, r3, phi):
 def free_rotation(inv, qp, pi, h):
     """axes (0, ½)(1, ½)(2, 1)(1, ½)(0, ½), then renormalise.
     Inlined: a call can raise (numba's status), which keeps the step tuple's reference counts
-    in the element loop (see ``INLINE``)."""
+    in the element loop (see ``steps.py``)."""
     p0, p1, p2 = pi
     r0, r1, r2, r3 = qp
     phi = (0.5 * h) * (inv[0] * p0)
@@ -374,6 +339,7 @@ def free_rotation(inv, qp, pi, h):
     return (r0 / n, r1 / n, r2 / n, r3 / n), (p0, p1, p2)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
 def strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     """The Strang step up to its closing half kick: half kick, then the drift with the
     exact free rotation."""
@@ -394,6 +360,7 @@ def strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     return x, q, v, w
 
 
+@njit(cache=True, error_model="numpy", inline="always")
 def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     """The Strang step's end without velocity-dependent forces: drift, explicit half kick."""
     x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
@@ -403,6 +370,7 @@ def strang(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     return x, q, v, w
 
 
+@njit(cache=True, error_model="numpy")
 def strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     """The Strang step's end with velocity-dependent forces: drift, implicit half kick."""
     x, q, v, w = strang_drift(bd, b, fds, x, q, v, w, fa, ta, tb, dt)
@@ -410,6 +378,7 @@ def strang_damped(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     return x, q, v, w
 
 
+@njit(cache=True, error_model="numpy")
 def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     """(M + ½ Δt C) u⁺ = M u + ½ Δt F(x, q, 0), one 6×6
     solve, C the sum of the velocity-dependent terms' damping matrices (``damping``, defined
@@ -438,10 +407,10 @@ def implicit_half_kick(bd, b, fds, x, q, v, w, fa, ta, tb, dt):
     return (u[0], u[1], u[2]), (u[3], u[4], u[5])
 
 
-def splitting(e, st, d):
+def splitting(tag, e, st, d):
     """Strang splitting, second order. Without
     velocity-dependent forces; ``splitting_damped`` is the scene's stage with them
-    (``_integrator_stage``), so this one calls nothing that can raise (see ``INLINE``)."""
+    (``_integrator_stage``), so this one calls nothing that can raise (see ``free_rotation``)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
     for b in range(st[X].shape[1]):
@@ -451,7 +420,7 @@ def splitting(e, st, d):
         store(st, e, b, x, q, v, w)
 
 
-def splitting4(e, st, d):
+def splitting4(tag, e, st, d):
     """Yoshida's triple jump of ``splitting``."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -464,7 +433,7 @@ def splitting4(e, st, d):
         store(st, e, b, x, q, v, w)
 
 
-def splitting_damped(e, st, d):
+def splitting_damped(tag, e, st, d):
     """``splitting`` with velocity-dependent forces (the implicit closing half kick)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -475,7 +444,7 @@ def splitting_damped(e, st, d):
         store(st, e, b, x, q, v, w)
 
 
-def splitting4_damped(e, st, d):
+def splitting4_damped(tag, e, st, d):
     """``splitting4`` with velocity-dependent forces."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -528,7 +497,7 @@ def gyro_velocity(bd, b, q, w, t, dt):
     return rotate(rot, omega)
 
 
-def implicit_gyro_velocity(e, st, d):
+def implicit_gyro_velocity(tag, e, st, d):
     """kick v; implicit gyroscopic step for ω."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -540,7 +509,7 @@ def implicit_gyro_velocity(e, st, d):
         store_velocity(st, e, b, v, gyro_velocity(bd, b, q, w, t, dt))
 
 
-def implicit_gyro_position(e, st, d):
+def implicit_gyro_position(tag, e, st, d):
     """translate; q ← normalise(exp(Δt ω) ∘ q)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -632,7 +601,7 @@ def solve6(a, r):
     return r
 
 
-def implicit_velocity(e, st, d):
+def implicit_velocity(tag, e, st, d):
     """linearised backward Euler, one 6×6 solve per body."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -678,7 +647,7 @@ def implicit_velocity(e, st, d):
         store_velocity(st, e, b, v, w)
 
 
-def implicit_position(e, st, d):
+def implicit_position(tag, e, st, d):
     """translate; q ← exp(Δt ω) ∘ q (not renormalised)."""
     (bd, prm, sd), fds = d
     dt = prm[0]
@@ -690,36 +659,44 @@ def implicit_position(e, st, d):
 
 
 def integrator_data(scene) -> tuple:
-    """The data every integrator template gets: (body data, [dt, velocity_dependent], springs)."""
+    """The data every integrator kernel gets: (body data, [dt, velocity_dependent], springs)."""
     model = scene.model
     velocity_dependent = any(term.velocity_dependent for term in scene.forces)
     params = np.array([scene.dt, float(velocity_dependent)])
     return (bodies.body_data(model), params, spring_table(model))
 
 
-for _name in ("euler", "euler_quat", "rk4", "splitting", "splitting4", "implicit_gyro", "implicit"):
-    register_integrator(_name, __name__)
+register_integrator("euler", globals(), velocity=euler_velocity, position=euler_position)
+# The two Euler variants share the velocity update (``integrators.euler``).
+register_integrator("euler_quat", globals(), velocity=euler_velocity, position=euler_quat_position)
+register_integrator("rk4", globals(), one=rk4)
+register_integrator("splitting", globals(), one=splitting)
+register_integrator("splitting_damped", globals(), one=splitting_damped)
+register_integrator("splitting4", globals(), one=splitting4)
+register_integrator("splitting4_damped", globals(), one=splitting4_damped)
+register_integrator(
+    "implicit_gyro", globals(), velocity=implicit_gyro_velocity, position=implicit_gyro_position
+)
+register_integrator("implicit", globals(), velocity=implicit_velocity, position=implicit_position)
 
 
-def _integrator_stage(suffix: str):
+def _integrator_stage(part: str):
     def factory(scene):
-        module = INTEGRATORS.get(scene.integrator)
-        if module is None:
+        # A splitting integrator comes in a ``_damped`` variant for velocity-dependent forces,
+        # so the plain one calls nothing that can raise (``free_rotation``).
+        variant = scene.integrator
+        if variant + "_damped" in INTEGRATORS and any(t.velocity_dependent for t in scene.forces):
+            variant += "_damped"
+        record = INTEGRATORS.get(variant)
+        kernel = None if record is None else getattr(record, part)
+        if kernel is None:
             return None
-        name = scene.integrator + suffix
-        templates = importlib.import_module(module).TEMPLATES
-        if name not in templates:
-            return None
-        # A template may come in a ``_damped`` variant for velocity-dependent forces, so the
-        # plain one calls nothing that can raise (``INLINE``).
-        damped = name + "_damped"
-        if damped in templates and any(term.velocity_dependent for term in scene.forces):
-            name = damped
-        return Kernel(module, name, integrator_data(scene), template=True)
+        fn = getattr(kernel, "py_func", kernel)
+        return Kernel(fn.__module__, fn.__name__, integrator_data(scene), tag=record.tag)
 
     return factory
 
 
-register("integrate")(_integrator_stage(""))
-register("integrate_velocity")(_integrator_stage("_velocity"))
-register("integrate_position")(_integrator_stage("_position"))
+register("integrate")(_integrator_stage("one"))
+register("integrate_velocity")(_integrator_stage("velocity"))
+register("integrate_position")(_integrator_stage("position"))
