@@ -103,9 +103,10 @@ def _check_composition(kernels: tuple[Kernel, ...]) -> None:
         raise ValueError(f"a step runs one integrator, got the kernels {kernels}")
     if len(parts) == len(kernels):
         return
+    if len(parts) != 2:
+        raise ValueError("contacts need the two halves of a semi-implicit integrator")
     names = [k.name for k in kernels]
-    if len(parts) == 2:
-        names[kernels.index(parts[0])], names[kernels.index(parts[1])] = "velocity", "position"
+    names[kernels.index(parts[0])], names[kernels.index(parts[1])] = "velocity", "position"
     required = {"velocity", "assemble", "restitute", "solve", "limit_energy", "position"}
     if names != [n for n in _CONTACT_ORDER if n in names] or not required <= set(names):
         raise ValueError(f"the contact step runs {_CONTACT_ORDER}, not {names}")
@@ -266,7 +267,8 @@ class Driver:
         tail = self.tail(steps, data, rows, warm)
         kind = rows is not None
         if kind not in self.signatures:
-            self.signatures[kind] = tuple(self.step.typeof_pyval(a) for a in (*args, *tail))
+            typeof = getattr(self.step, "typeof_pyval", None)  # (None: numba's JIT disabled)
+            self.signatures[kind] = tuple(map(typeof, (*args, *tail))) if typeof else ()
             what = "stages " + ", ".join(dict.fromkeys(k.name for k in self.kernels))
             bad = first_call(
                 self.step,
