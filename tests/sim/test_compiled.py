@@ -252,8 +252,10 @@ def test_kernels_called_by_address_get_the_types_they_were_compiled_for(monkeypa
     # Every kernel's address is where the step reads it; no body–body pairs, no address.
     assert drv.addresses[steps.PAIRS] == 0
     assert all(drv.addresses[CONTACT_KERNELS[k.name]] != 0 for k, _ in drv._callees)
+    _, ground, shared = drv.data  # what the step passes them
     for kernel, data in drv._callees:
         function = getattr(importlib.import_module(kernel.module), kernel.name)
+        assert data is (ground if kernel.name == "detect" else shared)
         assert calls.signature(data) in function.overloads
 
 

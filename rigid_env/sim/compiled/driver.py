@@ -142,16 +142,18 @@ class Driver:
         self.width = max(k.width for k in self.kernels)
         self.contacts = len(self.data) > 1
         self.step = contact_step if self.contacts else free_step
-        # The kernels called through their addresses (``calls``), with their data, and where
+        # The data as the step takes it: row 0 of its ``stack``, whose arrays are C-contiguous
+        # as the rows of per-element parameters are (``Parameters.data``, one row per element).
+        self.data = _row(stack([self.data]), 0)
+        # The kernels called through their addresses (``calls``), with the data the step passes
+        # them (a kernel compiled for other types would read the wrong memory), and where
         # ``contact_step`` finds each; ``addresses`` is filled on the first call, under its lock.
         _, ground, shared = self.data if self.contacts else (None, None, None)
         self._callees = tuple(
             (k, ground if k.name == "detect" else shared) for k in self.kernels if k.tag is None
         )
         self.addresses = np.zeros(len(CONTACT_KERNELS), np.int64) if self.contacts else None
-        # The data as the step takes it: row 0 of its ``stack``, whose arrays are C-contiguous
-        # as the rows of per-element parameters are (``Parameters.data``, one row per element).
-        self.data = _row(stack([self.data]), 0)
+        self._one_row: tuple = (None, None)  # the last one-row parameters and their row 0
         # ``warm``: the contact solve warm-starts (``SolverSettings.warm_start``), so a call
         # takes the impulses the state carries and returns the last step's (``__call__``).
         self.warm = warm
@@ -224,8 +226,11 @@ class Driver:
         # Every element takes ``one``, or with per-element rows element e takes row e.
         one, rows = self.data, None
         if data is not None:
-            if _rows(data) == 1:
+            if data is self._one_row[0]:  # (its row 0 is views: updates write through them)
+                one = self._one_row[1]
+            elif _rows(data) == 1:
                 one = _row(data, 0)
+                self._one_row = (data, one)
             else:
                 rows = data
         entry = self._entries.get(rows is not None)
