@@ -125,6 +125,23 @@ def test_one_row_serves_every_element():
     assert all(np.array_equal(a, b) for a, b in zip(got.arrays(), want.arrays(), strict=True))
 
 
+def test_one_row_updated_between_steps_steps_with_its_new_values():
+    """The driver takes a one-row parameter set's row once and keeps it: an update between two
+    steps must reach the next step (the row is views of the arrays ``update`` writes into)."""
+    rng = np.random.default_rng(3)
+    values, other = drawn(rng, 1), drawn(rng, 1)
+    scene = landing()
+    start = thrown(scene, rng, 3)
+    params = scene.parameters(**values)
+    scene.step(start, steps=2, parameters=params)  # the row is taken here
+    params.update(np.array([0]), **other)
+    body = sim.Body(other["mass"][0, 0], other["inertia"][0, 0], BOX.shape)
+    own = landing(body, other["friction"][0], other["restitution"][0])
+    got = scene.step(start, steps=30, parameters=params)
+    want = own.step(start, steps=30)
+    assert all(np.array_equal(a, b) for a, b in zip(got.arrays(), want.arrays(), strict=True))
+
+
 def test_over_threads_the_bits_of_the_serial_step():
     rng = np.random.default_rng(3)
     rows = 7

@@ -10,6 +10,8 @@ code for a None slot (``_optional``), so a body in space evaluates no force at a
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from ..model import Model
 from . import bodies
@@ -148,20 +150,25 @@ def springs(b, x, q, v, w, fd):
 
 
 def _optional(term, matrix=False):
-    """``term`` where its slot holds data; nothing where it holds None (a scene without it):
-    numba drops the branch an argument's type decides (``fd is None``) before typing, so a
-    None slot compiles to nothing. Force terms give ``(f, t) + term(...)``; damping matrices
-    (``matrix``) add into ``out``."""
+    """``term`` where its slot holds data; nothing where it holds None (a scene without it).
+
+    Force terms give ``(f, t) + term(...)``; damping matrices (``matrix``) add into ``out``.
+    The overloads pick by the slot's type when the step compiles; the plain functions are what
+    runs without numba's JIT."""
     if matrix:
 
-        @njit(error_model="numpy")
         def add(fd, b, x, q, out):
             if fd is not None:
                 term(b, x, q, fd, out)
 
+        @overload(add)
+        def _add(fd, b, x, q, out):
+            if isinstance(fd, types.NoneType):
+                return lambda fd, b, x, q, out: None
+            return lambda fd, b, x, q, out: term(b, x, q, fd, out)
+
         return add
 
-    @njit(error_model="numpy")
     def plus(fd, b, x, q, v, w, f, t):
         if fd is None:
             return f, t
@@ -171,6 +178,18 @@ def _optional(term, matrix=False):
             t[1] + ti[1],
             t[2] + ti[2],
         )
+
+    @overload(plus)
+    def _plus(fd, b, x, q, v, w, f, t):
+        if isinstance(fd, types.NoneType):
+            return lambda fd, b, x, q, v, w, f, t: (f, t)
+
+        def impl(fd, b, x, q, v, w, f, t):
+            fi, ti = term(b, x, q, v, w, fd)
+            f = (f[0] + fi[0], f[1] + fi[1], f[2] + fi[2])
+            return f, (t[0] + ti[0], t[1] + ti[1], t[2] + ti[2])
+
+        return impl
 
     return plus
 
