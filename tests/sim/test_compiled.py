@@ -325,7 +325,7 @@ def test_contact_data_blocks_start_where_the_kernels_read_them():
         springs=[spring()],
         backend="compiled",
     )
-    ints, floats = ca.contact_data(scene)
+    ints, floats, _ = ca.contact_data(scene)
     o = ca.offsets.py_func(ints)
     lay = next(s for s in scene.pipeline if isinstance(s, AssembleContacts)).layout
     c, n, g = len(lay.a), scene.n_bodies, ints[ca.I_GROUND]
@@ -351,3 +351,51 @@ def test_contact_data_blocks_start_where_the_kernels_read_them():
     bounds = [ca.bounding_radius(b.shape) for b in scene.model.bodies]
     np.testing.assert_array_equal(floats[o[ca.O_BOUND] : o[ca.O_BOUND] + n], bounds)
     assert o[ca.O_BOUND] + n == len(floats)  # the last float block
+
+
+_PAIR_CODE_PROBE = """
+import numba, numpy as np
+from rigid_env.sim.scenes import landing_scene
+from rigid_env.sim.compiled import contact_assembly as ca, contact_energy as ce
+from rigid_env.sim.compiled import contact_solve as cs
+scene, initial = landing_scene(dt=0.01)
+ints, floats, pairs = ca.contact_data(scene)
+assert pairs is None
+o = ca.offsets(ints)
+n, c = int(ints[ca.I_N]), int(ints[ca.I_C])
+st = tuple(np.zeros((1, max(n, c), 64)) for _ in range(14))
+st = st[:12] + (np.zeros((1, 16)),) + st[13:]
+x, q, u = np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 6))
+owner = np.zeros(c, np.int64)
+fresh = numba.njit  # uncached copies: numba types them (and reaches their callees) here
+marker = None if {none} else np.array([1], np.int64)
+fresh(ca.assemble_pairs.py_func)(marker, 0, st, ints, floats, o, False)
+if {none}:  # (with a marker this would compile the box-box detection: seconds)
+    fresh(ce.separated_end_potential.py_func)(marker, st, 0, ints, floats, o, 0.0, 0.0)
+fresh(cs.reassemble_pairs.py_func)(marker, 0, st, ints, floats, o, owner, owner - 1, u)
+print(len(ca.assemble_pair.signatures), len(ce.separated.signatures))
+"""
+
+
+@pytest.mark.parametrize("none", [True, False])
+def test_a_ground_scene_compiles_no_pair_code(none):
+    """The contact data's ``pairs`` is None in a scene without body–body contacts, and the pair
+    parts of the kernels then reach no pair function: numba drops their branches before
+    typing (``contact_assembly.PAIRS``). With a marker, the same call reaches its pair
+    function: the check sees callees."""
+    import subprocess
+    import sys
+
+    if numba.config.DISABLE_JIT:
+        pytest.skip("nothing is typed with numba's JIT disabled")
+    out = subprocess.run(
+        [sys.executable, "-c", _PAIR_CODE_PROBE.replace("{none}", str(none))],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    assigned, separated = int(out[-2]), int(out[-1])
+    if none:
+        assert (assigned, separated) == (0, 0)
+    else:
+        assert assigned > 0

@@ -169,7 +169,7 @@ def test_far_pairs_get_no_contact_point_and_near_ones_their_detection():
     state = scene.initial_state(position=[(0, 0, 0.1), (0, 0, 0.3), (1.0, 0, 0.1)])
     arrays = [np.ascontiguousarray(a.reshape(1, 3, -1)) for a in state.arrays()]
     x, q = arrays[0][0], arrays[1][0]
-    ints, floats = ca.contact_data(scene)
+    ints, floats, _ = ca.contact_data(scene)
     o = ca.offsets.py_func(ints)
     rows = 3 * 4
     out = [np.zeros((rows, 3)) for _ in range(3)]

@@ -75,7 +75,6 @@ from .contact_assembly import (
     F_GRAVITY,
     I_GRAVITY,
     I_GROUND,
-    I_GROUPS,
     I_N,
     I_SPRINGS,
     I_V,
@@ -327,9 +326,26 @@ def separated(ints, floats, o, x, q, out):
 
 
 @njit(cache=True, error_model="numpy")
-def separated_end_potential(st, e, ints, floats, o, h, elapsed):
+def separate_pairs(pairs, ints, floats, o, x, q):
+    """``separate_contacts``' part in a scene with body–body contacts: x (n, 3) ← its
+    separated positions at (x, q), every overlap found before any is removed (``separated``);
+    whether anything overlapped (False in a scene without, ``contact_assembly.PAIRS``)."""
+    if pairs is None:
+        return False
+    out = np.empty((x.shape[0], 3))
+    moved = separated(ints, floats, o, x, q, out)
+    if moved:
+        x[:] = out
+    return moved
+
+
+@njit(cache=True, error_model="numpy")
+def separated_end_potential(pairs, st, e, ints, floats, o, h, elapsed):
     """Σ_b m (x · g) at the separated end positions of a scene with body–body contacts:
-    x_end = base + h v, q_end = exp(h ω) q_path for every body (``LimitEnergy``)."""
+    x_end = base + h v, q_end = exp(h ω) q_path for every body (``LimitEnergy``); 0 in a
+    scene without (``contact_assembly.PAIRS``)."""
+    if pairs is None:
+        return 0.0
     n = ints[I_N]
     x_end, q_end, out = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3))
     v, w = st[V], st[W]
@@ -359,7 +375,7 @@ def limit_energy(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats = d
+    ints, floats, pairs = d
     o = offsets(ints)
     n = ints[I_N]
     has_gravity = ints[I_GRAVITY] != 0
@@ -421,13 +437,10 @@ def limit_energy(e, st, d):
         f = min(max(root, 0.0), 1.0)
     # The separated end positions must fit as well: halve f until they do.
     over = False
-    pairs = ints[I_GROUPS] > 0
     for _ in range(MAX_HALVINGS):
         h = f * tail
-        total = 0.0
-        if pairs:
-            total = separated_end_potential(st, e, ints, floats, o, h, elapsed)
-        for b in range(n if not pairs else 0):
+        total = separated_end_potential(pairs, st, e, ints, floats, o, h, elapsed)
+        for b in range(n if pairs is None else 0):
             g = slot_of(ints, o, b)
             base = base_position(st, e, b, elapsed)
             vb = vec3(v, e, b)
@@ -497,7 +510,7 @@ def separate_contacts(e, st, d):
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    ints, floats = d
+    ints, floats, pairs = d
     o = offsets(ints)
     n = ints[I_N]
     has_gravity = ints[I_GRAVITY] != 0
@@ -505,13 +518,8 @@ def separate_contacts(e, st, d):
     before = 0.0
     for b in range(n):
         before += potential_term(floats, o, b, vec3(x, e, b))
-    moved = False
-    if ints[I_GROUPS] > 0:  # body–body contacts: every overlap found before any is removed
-        out = np.empty((n, 3))
-        moved = separated(ints, floats, o, x[e], q[e], out)
-        if moved:
-            x[e] = out
-    for g in range(ints[I_GROUND] if ints[I_GROUPS] == 0 else 0):
+    moved = separate_pairs(pairs, ints, floats, o, x[e], q[e])
+    for g in range(ints[I_GROUND] if pairs is None else 0):
         b = ints[o[O_SHAPED] + g]
         deep = depth(floats, o, ints, g, vec4(q, e, b), x[e, b, 2])
         if deep > 0:

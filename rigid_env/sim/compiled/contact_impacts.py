@@ -84,7 +84,6 @@ from .contact_assembly import (
     F_TOLERANCE,
     I_C,
     I_GROUND,
-    I_GROUPS,
     I_K,
     I_MAX_IMPACTS,
     I_MAX_ITERATIONS,
@@ -137,11 +136,17 @@ from .rotation import cross, quat_exp, quat_multiply
 @njit(cache=True, error_model="numpy")
 def restitute(e, st, d):
     """The ``restitute`` stage for one engaged element."""
+    impacts(e, st, d, d[2])
+
+
+@njit(cache=True, error_model="numpy")
+def impacts(e, st, d, pairs):
+    """``restitute``, with its data's ``pairs`` as an argument (``contact_assembly.PAIRS``):
+    in a scene with body–body contacts, rows that move with the impacts."""
     report = st[REPORT]
     if report[e, ENGAGED] == 0.0:
         return
-    pairs = d[0][I_GROUPS] > 0  # body–body contacts: rows that move with the impacts
-    if not (_may_strike_pairs(e, st, d) if pairs else _may_strike(e, st, d)):
+    if not (_may_strike(e, st, d) if pairs is None else _may_strike_pairs(e, st, d)):
         return
     views = unpack(d)
     ints, floats, mu, eps, thr, owner, shaped, mass, rim, lflat, linv = views[:11]
@@ -199,7 +204,7 @@ def restitute(e, st, d):
     for _ in range(max_impacts + 2):
         first = math.inf
         for i in range(c):
-            round_pair = pairs and ints[o_round + i] != 0
+            round_pair = pairs is not None and ints[o_round + i] != 0
             g, vn[i], close = closing(cs, i, owner[i], owner_b[i], u, disp, e, round_pair)
             gaps[i] = g
             at = min(elapsed + close, dt)
@@ -269,7 +274,7 @@ def restitute(e, st, d):
             qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
             for j in range(4):
                 p[j] = qb[j]
-        if pairs:
+        if pairs is not None:
             # A sphere pair's gap, normal velocity and target at the touch, exactly; then
             # every pair's rows where the bodies are now (``contact_assembly.assemble_pair``).
             for i in range(c):
@@ -429,7 +434,7 @@ def _may_strike(e, st, d):
     loop breaks at once and changes nothing but ``PATH_Q`` (read only after an event) and the
     report's zeros, so the kernel returns before its scratch and views. The same operations in
     the same order as the loop, on the arrays in place: its verdict, bit for bit."""
-    ints, floats = d
+    ints, floats = d[0], d[1]
     o = offsets(ints)
     dt = floats[F_DT]
     contact = st[CONTACT]

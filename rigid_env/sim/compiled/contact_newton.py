@@ -355,11 +355,16 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
         crawl = False
         if accepted:
             crawl = alpha < CRAWL_STEP and phi2 > CRAWL_DECREASE * phi
-            lam[:] = trial
-            f[:] = f2
-            zn[:] = zn2
-            zt[:, :] = zt2
-            rho[:] = rho2
+            # Entry by entry: a slice assignment compiles numpy's broadcast check and its
+            # message, a second of a cold start.
+            for i in range(size):
+                lam[i] = trial[i]
+                f[i] = f2[i]
+            for i in range(c):
+                zn[i] = zn2[i]
+                zt[i, 0] = zt2[i, 0]
+                zt[i, 1] = zt2[i, 1]
+                rho[i] = rho2[i]
             phi = phi2
             steps += 1
         # A stall or a crawl: past a mode change along G's null direction (``newton``).

@@ -173,7 +173,7 @@ def collide(e, st, d):
     """``CollidePairs`` for one element: detection at the working poses (the start's), the
     broad phase over the step at the speeds the velocity update left (the contact stages add
     no kinetic energy, so no pair it passes over can touch or take an impulse this step)."""
-    ints, floats = d
+    ints, floats, _ = d
     o = offsets(ints)
     n_ground = ints[I_GROUND] * ints[I_K]
     rows = ints[I_C] - n_ground

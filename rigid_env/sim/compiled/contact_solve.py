@@ -57,7 +57,6 @@ from .contact_assembly import (
     F_DT,
     F_TOLERANCE,
     I_GROUND,
-    I_GROUPS,
     I_K,
     I_MAX_ITERATIONS,
     I_N,
@@ -149,6 +148,19 @@ def reach_bound(cs, i, a, b, rim, spin, speed):
 
 
 @njit(cache=True, error_model="numpy")
+def reassemble_pairs(pairs, e, st, ints, floats, o, owner, owner_b, u):
+    """The pairs' rows where the impacts left the bodies, t₁ from the velocities after them
+    (``contact_assembly.assemble_pair``); nothing in a scene without body–body contacts
+    (``contact_assembly.PAIRS``)."""
+    if pairs is None:
+        return
+    o_round = o[O_ROUND]
+    for i in range(ints[I_GROUND] * ints[I_K], owner.shape[0]):
+        round_pair = ints[o_round + i] != 0
+        assemble_pair(e, st, floats, o, i, owner[i], owner_b[i], u, True, round_pair)
+
+
+@njit(cache=True, error_model="numpy")
 def solve(e, st, d):
     """``SolveContacts`` for one engaged element; writes ITERATIONS, CAPPED and TOUCHED.
 
@@ -166,7 +178,7 @@ def solve(e, st, d):
     if report[e, ENGAGED] == 0.0:
         st[CONTACT][e, 0, WARM_OK] = 0.0  # the next step starts cold
         return
-    ints, floats = d
+    ints, floats, pairs = d
     o = offsets(ints)
     mu_all, owner, shaped, mass, rim, lflat, linv, owner_b = solver_views(ints, floats, o)
     n_bodies = ints[I_N]
@@ -177,12 +189,12 @@ def solve(e, st, d):
     cs = st[CONTACT][e]
     c = owner.shape[0]
     n = st[0].shape[1]
-    every_slot = ints[I_GROUPS] == 0  # (the docstring: scenes without body–body contacts)
     # Every slot's free velocities, impulses, targets, shortfalls and the impacts' impulses.
-    # A scene that solves every slot solves these vectors themselves, and its A and work space
-    # follow them in the same allocation (each allocation costs about as much as a sweep).
+    # A scene that solves every slot (the docstring: no body–body contacts) solves these
+    # vectors themselves, and its A and work space follow them in the same allocation (each
+    # allocation costs about as much as a sweep).
     head = 18 * n + 9 * c
-    every = np.empty(head + (9 * c * c + WORK_PER_CONTACT * c if every_slot else 0))
+    every = np.empty(head + (9 * c * c + WORK_PER_CONTACT * c if pairs is None else 0))
     u = block(every, 0, n, 6)
     u_in = block(every, 6 * n, n, 6)
     z = block(every, 12 * n, n, 6)
@@ -193,16 +205,10 @@ def solve(e, st, d):
     short_all = every[at + 7 * c : at + 8 * c]
     extra_all = every[at + 8 * c : at + 9 * c]
     load_velocities(st, e, u)
-    u_in[:] = u
+    load_velocities(st, e, u_in)
     remaining = dt - report[e, ELAPSED]
-    if ints[I_GROUPS] > 0 and report[e, ELAPSED] > 0:
-        # The pairs' rows where the impacts left the bodies, t₁ from the velocities after
-        # them (``contact_assembly.assemble_pair``).
-        o_round = o[O_ROUND]
-        for i in range(ints[I_GROUND] * k, c):
-            assemble_pair(
-                e, st, floats, o, i, owner[i], owner_b[i], u, True, ints[o_round + i] != 0
-            )
+    if report[e, ELAPSED] > 0:
+        reassemble_pairs(pairs, e, st, ints, floats, o, owner, owner_b, u)
     for i in range(c):
         for r in range(3):
             free_all[3 * i + r] = contact_velocity(cs, i, owner[i], owner_b[i], u, r)
@@ -229,7 +235,7 @@ def solve(e, st, d):
             scale = max(scale, abs(target_all[i]))
             shortfall = max(shortfall, abs(short_all[i]))
     scale = max(scale, 1e-300)
-    if every_slot:
+    if pairs is None:
         m = c
         slots = owner[:0]  # empty: every slot (``delassus``)
         a = block(every, head, 3 * c, 3 * c)
@@ -323,7 +329,7 @@ def solve(e, st, d):
             np.bool_(True),  # the probe's sweep decomposed A_tt into ``work``
         )
         sweeps += more
-    if not every_slot:  # (else lam is lam_all)
+    if pairs is not None:  # (else lam is lam_all)
         lam_all[:] = 0.0
         for s in range(m):
             for r in range(3):
