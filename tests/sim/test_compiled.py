@@ -370,8 +370,9 @@ owner = np.zeros(c, np.int64)
 fresh = numba.njit  # uncached copies: numba types them (and reaches their callees) here
 marker = None if {none} else np.array([1], np.int64)
 fresh(ca.assemble_pairs.py_func)(marker, 0, st, ints, floats, o, False)
-if {none}:  # (with a marker this would compile the box-box detection: seconds)
+if {none}:  # (with a marker these would compile the box-box detection: seconds)
     fresh(ce.separated_end_potential.py_func)(marker, st, 0, ints, floats, o, 0.0, 0.0)
+    fresh(ce.separate_pairs.py_func)(marker, ints, floats, o, x, q)
 fresh(cs.reassemble_pairs.py_func)(marker, 0, st, ints, floats, o, owner, owner - 1, u)
 print(len(ca.assemble_pair.signatures), len(ce.separated.signatures))
 """

@@ -82,8 +82,8 @@ I_GROUPS, I_SPRINGS, I_WARM, I_NEWTON_AFTER, I_NEWTON_STEPS = -5, -4, -3, -2, -1
 # PAIRS: the data's third slot, ``pairs``, is None in a scene without body–body contacts and
 # else holds the number of pair groups. A kernel's pair code runs in a function that takes
 # ``pairs`` as an argument and tests ``pairs is None`` first: numba drops a branch on a None
-# argument before typing, so a ground scene's kernels compile no pair code (on a cold landing
-# step, about a third of the contact kernels' compile time).
+# argument before typing, so a ground scene's kernels compile no pair code
+# (``docs/performance.md`` has what that saves).
 
 
 _BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -355,8 +355,8 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
         crawl = False
         if accepted:
             crawl = alpha < CRAWL_STEP and phi2 > CRAWL_DECREASE * phi
-            # Entry by entry: a slice assignment compiles numpy's broadcast check and its
-            # message, a second of a cold start.
+            # Entry by entry: a slice assignment would compile numpy's broadcast check and
+            # the formatting of its error message into the cold start.
             for i in range(size):
                 lam[i] = trial[i]
                 f[i] = f2[i]
