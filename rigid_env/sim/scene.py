@@ -194,8 +194,8 @@ class Scene:
         """The report of the last step this scene ran (``State.report`` of the state it
         returned; see the class docstring). Steps of one scene on several threads: read each
         returned state's ``report`` instead, which is its own step's. A compiled step keeps
-        its report columns and builds the dict on the first read (~1.7 µs of a ~10 µs batch-1
-        landing step, which a caller that never reads it need not pay); a step whose contact
+        its report columns and builds the dict on the first read (a share of a batch-1 step
+        that a caller who never reads it need not pay); a step whose contact
         solve stopped at its cap builds it at once, so its ``ContactSolverWarning`` comes with
         the step."""
         last = self._last
@@ -396,8 +396,7 @@ class Scene:
             qshape = shape[:-1] + (4,)
             x, q, v, w = x.reshape(shape), q.reshape(qshape), v.reshape(shape), w.reshape(shape)
         # State(x, q, v, w) without the frozen dataclass's four object.__setattr__ calls
-        # (~0.4 µs of a ~5 µs batch-1 step; item by item, ~0.2 µs cheaper than update(**)):
-        # the same instance, fields set once.
+        # (item by item, cheaper than update(**)): the same instance, fields set once.
         new = _State_new(State)
         fields = new.__dict__
         fields["position"] = x
@@ -605,7 +604,7 @@ def _load(value, name: str, shape: tuple[int, ...], check_finite: bool = True):
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a numeric array of shape {shape}") from None
-    # A single 3-vector always broadcasts (the common case; broadcast_shapes costs ~1 µs).
+    # A single 3-vector always broadcasts (the common case, spared broadcast_shapes' cost).
     if arr.shape != shape and arr.shape != shape[-1:]:
         try:
             ok = np.broadcast_shapes(arr.shape, shape) == shape

@@ -109,7 +109,7 @@ copies of several steps), builds ``st`` and loops over the batch (element e with
 per-element ``rows`` when given), counting the elements with a bad quaternion, a non-finite
 result and a capped solve (the scene builds its report dict from the columns when read, at
 once when a solve was capped). ``steps.begin``, ``finite`` and ``carry`` are inlined: a call
-passes each array of ``st`` field by field, ~30-100 ns per call per element. Every kernel is
+passes each array of ``st`` field by field, per call per element. Every kernel is
 called with ``st`` by reference (a ``calls.StepRef``: index it with constants, as the tuple):
 the integrator's through its overload, detection and the contact kernels through their
 addresses (``calls.py``), compiled once each, for ``calls.signature(d)``, and linked into no

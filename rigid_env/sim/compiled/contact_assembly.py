@@ -177,7 +177,7 @@ def _contact_data(scene) -> tuple | None:
         parts.append(np.asarray(blocks[o]))
     ints = np.concatenate([*int_parts, tail]).astype(np.int64)
     floats = np.concatenate(float_parts).astype(float)
-    # Two arrays, not fifteen: each array of a kernel's data costs ~0.15 µs to pass per call.
+    # Two arrays, not fifteen: each array of a kernel's data costs time to pass per call.
     # The third slot is None in a scene without body–body contacts, and its kernels are
     # compiled without the pair code (``PAIRS``).
     pairs = np.array([len(groups)], np.int64) if len(groups) else None
@@ -228,8 +228,8 @@ def pair_tables(lay) -> tuple:
     )
 
 
-# ``reshape`` gives these views through a call into numba's C helper, ~35 ns per view per
-# element; a C-ordered block's strides are known, so ``as_strided`` sets them directly.
+# ``reshape`` gives these views through a call into numba's C helper per view per element; a
+# C-ordered block's strides are known, so ``as_strided`` sets them directly.
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -252,7 +252,7 @@ def block3(flat, start, a, b, c):
 def offsets(ints):
     """Start of each block of ``contact_data``'s arrays (``O_*``): owner and shaped in ints,
     the rest in floats. Kernels on the common path index the two arrays in place with these:
-    each view ``unpack`` makes costs ~8 ns per element (its reference count). A tuple of
+    each view ``unpack`` makes costs a reference count per element. A tuple of
     scalars, not a view of ``ints``, for the same reason."""
     s = I_OFFSETS
     return (

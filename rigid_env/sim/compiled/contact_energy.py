@@ -55,7 +55,7 @@ ground, or in flight; the friction work for a sliding body; the kinetic energy l
 inelastic impact; and the guard's price above.
 
 Both run for every engaged element, a resting box included, so they keep no scratch arrays
-and few views (an allocation costs ~30 ns per element, a view ~8 ns in reference counting):
+and few views (an allocation, and a view's reference counting, cost per element):
 per-body quantities (u₁, the path's orientation, the base position, the separated end
 position) are recomputed where they are used, by the same operations, and the data arrays are
 indexed in place (``contact_assembly.offsets``).

@@ -35,7 +35,7 @@ def eig2(a, b, c):
 
 # Inlined (with ``velocity_scale``, Newton's ``residual``, ``jacobian``, ``least_squares_step``
 # and ``cholesky``'s kernels) into the loops that call them: as calls, passing their arrays
-# (reference counts) and arguments cost ~4 % of BoxLanding's physics.
+# (reference counts) and arguments cost a few per cent of BoxLanding's physics.
 @njit(cache=True, error_model="numpy", inline="always")
 def disk_step(a00, a01, a11, e0, e1, q00, q01, q10, q11, l0, l1, v0, v1, cap):
     """the tangent impulse minimising the contact's

@@ -154,8 +154,6 @@ def impacts(e, st, d, pairs):
     c = owner.shape[0]
     dt = floats[F_DT]
     cs = st[CONTACT][e]
-    tolerance = floats[F_TOLERANCE]
-    max_iterations = ints[I_MAX_ITERATIONS]
     max_impacts = ints[I_MAX_IMPACTS]
     disp = st[DISPLACEMENT]
     q = st[Q]
@@ -214,123 +212,79 @@ def impacts(e, st, d, pairs):
             first = min(first, tau[i])
         if not first < dt - elapsed:
             break
-        if not held:
+        supports = not held  # this pass solves the supports, the later ones the events
+        if supports:
             # The supports: the contacts that are no impact hold from the step's start.
             for i in range(c):
                 g = gaps[i]
                 goal[i] = -math.inf if eligible[i] else (-g / dt if g > 0 else 0.0)
-            delassus(
-                cs, owner, owner_b, owner[:0], c, 1, a_nn
-            )  # every slot  # the rows of the detection
+            delassus(cs, owner, owner_b, owner[:0], c, 1, a_nn)  # every slot, detected rows
             held = True
-            if not _event(
-                st,
-                e,
-                cs,
-                owner,
-                owner_b,
-                lflat,
-                rim,
-                mass,
-                linv,
-                mu,
-                a_nn,
-                vn,
-                goal,
-                lam,
-                none,
-                u,
-                z,
-                dz,
-                du,
-                max_iterations,
-                tolerance,
-                work,
-            ):
-                report[e, CAPPED] = 1.0
+        elif events >= max_impacts:
+            report[e, CAPPED] = 1.0
+            break
+        else:
+            for i in range(c):
+                cs[i, PATH_GAP] = cs[i, PATH_GAP] + first * vn[i]
+            elapsed += first
+            for b in range(n):
+                for j in range(3):
+                    disp[e, b, j] += first * u[b, j]
+            # The orientation follows the path too in a body's record
+            # ``PATH_Q`` (a body without contacts keeps its ω: ``limit_energy`` turns it at once).
+            for b in range(n):
+                if record[b] < 0:
+                    continue
+                turn = quat_exp((first * u[b, 3], first * u[b, 4], first * u[b, 5]))
+                p = cs[record[b], PATH_Q : PATH_Q + 4]
+                qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
+                for j in range(4):
+                    p[j] = qb[j]
+            if pairs is not None:
+                # A sphere pair's gap, normal velocity and target at the touch, exactly; then
+                # every pair's rows where the bodies are now (``contact_assembly.assemble_pair``).
+                for i in range(c):
+                    if ints[o_round + i] != 0:
+                        g, vn[i], close = round_closing(cs, i, owner[i], owner_b[i], u, disp, e)
+                        cs[i, PATH_GAP] = g
+                        goal[i] = impact_target(
+                            vn[i], half[i], min(elapsed + close, dt), eps[i], dt
+                        )[1]
+                for i in range(ints[I_GROUND] * k, c):
+                    round_pair = ints[o_round + i] != 0
+                    assemble_pair(
+                        e, st, floats, offsets(ints), i, owner[i], owner_b[i], u, True, round_pair
+                    )
+                delassus(cs, owner, owner_b, owner[:0], c, 1, a_nn)  # every slot
+            # Contacts closing together, and the other contacts of their manifolds (a body on the
+            # ground, a pair of bodies) closing within one step of the event, are struck together.
+            for i in range(c):
+                hit[i] = eligible[i] and tau[i] <= first * (1 + 1e-9) + 1e-15
+            for i in range(c):
+                if hit[i] or not eligible[i] or not tau[i] < first + dt:
+                    continue
+                for j in range(c):
+                    if hit[j] and owner[j] == owner[i] and owner_b[j] == owner_b[i]:
+                        hit[i] = True
+                        break
+            for i in range(c):
+                struck[i] = struck[i] or hit[i]
+                if not hit[i]:
+                    g = cs[i, PATH_GAP]
+                    goal[i] = (-g / dt if g > 0 else 0.0) if loaded[i] else -math.inf
+                lam[i] = 0.0
+            events += 1
+        views = (owner, owner_b, lflat, rim, mass, linv, mu)
+        scratch = (u, z, dz, du, work)
+        if not _event(st, e, cs, views, a_nn, vn, goal, lam, none, scratch, ints, floats):
+            report[e, CAPPED] = 1.0
+        if supports:
             # The loaded supports hold through every event; the closing contacts' normal
             # acceleration is the one the supports leave (the module docstring).
             for i in range(c):
                 loaded[i] = cs[i, IMPULSE] > 0.0 and not eligible[i]
                 vn1 = normal_speed(cs, i, owner[i], owner_b[i], u)
                 half[i] = 0.5 * (vn1 - normal_speed(cs, i, owner[i], owner_b[i], u0))
-            continue
-        if events >= max_impacts:
-            report[e, CAPPED] = 1.0
-            break
-        for i in range(c):
-            cs[i, PATH_GAP] = cs[i, PATH_GAP] + first * vn[i]
-        elapsed += first
-        for b in range(n):
-            for j in range(3):
-                disp[e, b, j] += first * u[b, j]
-        # The orientation follows the path too in a body's record
-        # ``PATH_Q`` (a body without contacts keeps its ω: ``limit_energy`` turns it at once).
-        for b in range(n):
-            if record[b] < 0:
-                continue
-            turn = quat_exp((first * u[b, 3], first * u[b, 4], first * u[b, 5]))
-            p = cs[record[b], PATH_Q : PATH_Q + 4]
-            qb = quat_multiply(turn, (p[0], p[1], p[2], p[3]))
-            for j in range(4):
-                p[j] = qb[j]
-        if pairs is not None:
-            # A sphere pair's gap, normal velocity and target at the touch, exactly; then
-            # every pair's rows where the bodies are now (``contact_assembly.assemble_pair``).
-            for i in range(c):
-                if ints[o_round + i] != 0:
-                    g, vn[i], close = round_closing(cs, i, owner[i], owner_b[i], u, disp, e)
-                    cs[i, PATH_GAP] = g
-                    goal[i] = impact_target(vn[i], half[i], min(elapsed + close, dt), eps[i], dt)[1]
-            for i in range(ints[I_GROUND] * k, c):
-                round_pair = ints[o_round + i] != 0
-                assemble_pair(
-                    e, st, floats, offsets(ints), i, owner[i], owner_b[i], u, True, round_pair
-                )
-            delassus(cs, owner, owner_b, owner[:0], c, 1, a_nn)  # every slot
-        # Contacts closing together, and the other contacts of their manifolds (a body on the
-        # ground, a pair of bodies) closing within one step of the event, are struck together.
-        for i in range(c):
-            hit[i] = eligible[i] and tau[i] <= first * (1 + 1e-9) + 1e-15
-        for i in range(c):
-            if hit[i] or not eligible[i] or not tau[i] < first + dt:
-                continue
-            for j in range(c):
-                if hit[j] and owner[j] == owner[i] and owner_b[j] == owner_b[i]:
-                    hit[i] = True
-                    break
-        for i in range(c):
-            struck[i] = struck[i] or hit[i]
-            if not hit[i]:
-                g = cs[i, PATH_GAP]
-                goal[i] = (-g / dt if g > 0 else 0.0) if loaded[i] else -math.inf
-            lam[i] = 0.0
-        if not _event(
-            st,
-            e,
-            cs,
-            owner,
-            owner_b,
-            lflat,
-            rim,
-            mass,
-            linv,
-            mu,
-            a_nn,
-            vn,
-            goal,
-            lam,
-            none,
-            u,
-            z,
-            dz,
-            du,
-            max_iterations,
-            tolerance,
-            work,
-        ):
-            report[e, CAPPED] = 1.0
-        events += 1
     report[e, IMPACTS] = events
     report[e, ELAPSED] = elapsed
     if held:
@@ -471,33 +425,14 @@ def _normal_velocity(contact, v, w, e, i, b):
 
 
 @njit(cache=True, error_model="numpy")
-def _event(
-    st,
-    e,
-    cs,
-    owner,
-    owner_b,
-    lflat,
-    rim,
-    mass,
-    linv,
-    mu,
-    a_nn,
-    vn,
-    goal,
-    lam,
-    none,
-    u,
-    z,
-    dz,
-    du,
-    max_iterations,
-    tolerance,
-    work,
-):
+def _event(st, e, cs, views, a_nn, vn, goal, lam, none, scratch, ints, floats):
     """Newton's law ``v_n ≥ goal`` (−∞: out of play) by Gauss–Seidel
     from zero, the impulses scaled by the largest α ∈ [0, 1] that adds no kinetic energy, added
-    to u and to the contacts' ``IMPULSE``. Returns whether the solve converged."""
+    to u and to the contacts' ``IMPULSE``. ``views``: (owner, owner b, L, 1/√m, mass, L⁻¹, μ)
+    of ``unpack``; ``scratch``: (u, z, dz, du, work). Returns whether the solve converged."""
+    owner, owner_b, lflat, rim, mass, linv, mu = views
+    u, z, dz, du, work = scratch
+    max_iterations, tolerance = ints[I_MAX_ITERATIONS], floats[F_TOLERANCE]
     n = u.shape[0]
     c = lam.shape[0]
     for i in range(c):

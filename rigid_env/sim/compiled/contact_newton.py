@@ -40,9 +40,8 @@ from .contact_gauss_seidel import gauss_seidel, sweep_change
 
 ARMIJO = 1e-4  # sufficient decrease of |F|² per unit step (Nocedal & Wright, 2006, §3.1)
 # Line-search halvings before the step is called a stall. The short steps they allow (α down
-# to 1e-9) do the work in the hardest solves: before the jumps below, with 10, the capped solves
-# of BoxLanding's trained-policy states (150 × 512 × 8 cold single steps, 352,787 engaged) went
-# from 1,660 to 3,458.
+# to 1e-9) do the work in the hardest solves (with 10, twice as many were capped:
+# ``docs/performance.md``, as for the other constants here).
 HALVINGS = 30
 # A Newton step that stalls (no step length decreases |F|²) or crawls (accepted shorter than
 # CRAWL_STEP, lowering |F|² by less than 1 − CRAWL_DECREASE) has met a direction G cannot
@@ -57,10 +56,7 @@ HALVINGS = 30
 # takes the side with the smaller |F|², if that is at most JUMP_GROWTH × |F|²; Newton goes on
 # from there in the new mode. A jump counts as a Newton step; at most JUMPS per polish. The
 # direction: two steps of inverse iteration on the step's regularised GᵀG (Golub & Van Loan,
-# "Matrix Computations", 2013, §7.6.1) from the ones vector. On the states of HALVINGS' note:
-# capped solves 1,660 → 980, solves over 100 sweeps 1,375 → 66, and the physics 5.45–5.52 →
-# 4.64–4.72 µs per element step (8-step warm calls, compiled, one run); under random actions
-# (150 × 512 × 8, 462,961 engaged) capped 436 → 421. JUMPS 12 capped 1,041.
+# "Matrix Computations", 2013, §7.6.1) from the ones vector.
 CRAWL_STEP = 1.0 / 16.0
 CRAWL_DECREASE = 0.9
 JUMP_FLOOR = 2.0**-40
@@ -74,15 +70,13 @@ JUMPS = 4
 # entries (3C ε ‖G‖² ≤ 24 ε ≈ 5e-15 relative), so the matrix is positive definite in floating
 # point, and G's null space (a face's redundant corners) gets no step. A ridge growing with the
 # residual, δ = max(this, |F|²) (Yamashita & Fukushima, "On the rate of convergence of the
-# Levenberg–Marquardt method", Computing Suppl. 15, 2001) capped more solves on the states of
-# HALVINGS' note (1,855 against 1,660, before the jumps): what stopped Newton there was a
-# mode it could not change, which the jumps handle.
+# Levenberg–Marquardt method", Computing Suppl. 15, 2001) capped more solves: what stopped
+# Newton there was a mode it could not change, which the jumps handle.
 RIDGE = 1e-14
 # Newton stops when no contact's residual, in velocity units (|F| A_nn), exceeds this share of
 # the solve's tolerance × scale: the closing Gauss–Seidel sweep then meets the tolerance.
 MARGIN = 1e-2
-# r = GAIN / A_nn: any r > 0 gives the same roots; 10 converged 148 of 153 capped BoxLanding
-# cases against 146 for 1 (the rollout bench's cases, measured when the polish was written).
+# r = GAIN / A_nn: any r > 0 gives the same roots; 10 converged a few more capped cases than 1.
 GAIN = 10.0
 
 
@@ -312,7 +306,7 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
     c = target.shape[0]
     size = 3 * c
     goal = MARGIN * tolerance * scale
-    # One scratch allocation carved into views (thirteen cost ~0.6 µs per call).
+    # One scratch allocation carved into views, not thirteen allocations.
     buf = np.empty(2 * size * size + 4 * size + 8 * c)
     g = buf[: size * size].reshape((size, size))
     normal = buf[size * size : 2 * size * size].reshape((size, size))
@@ -385,20 +379,9 @@ def newton(a, free, target, mu, lam, extra, budget, tolerance, scale):
 
 @njit(cache=True, error_model="numpy")
 def converge(
-    a,
-    free,
-    target,
-    mu,
-    lam,
-    extra,
-    max_iterations,
-    tolerance,
-    scale,
-    newton_after,
-    newton_steps,
-    work,
-    decomposed=False,
-):
+    a, free, target, mu, lam, extra, max_iterations, tolerance, scale, newton_after,
+    newton_steps, work, decomposed=False,
+):  # fmt: skip
     """rounds of ``newton_after`` Gauss–Seidel sweeps
     with Newton polishes between them, each judged by the sweep after it (undone, with no
     more polishes, if that sweep changes more than the last one before it; λ before the polish
@@ -424,18 +407,7 @@ def converge(
                 work[saved + k] = lam[k]
             steps += newton(a, free, target, mu, lam, extra, newton_steps - steps, tolerance, scale)
             more, done = gauss_seidel(
-                a,
-                free,
-                target,
-                mu,
-                lam,
-                extra,
-                3,
-                np.int64(1),
-                tolerance,
-                scale,
-                work,
-                np.bool_(True),
+                a, free, target, mu, lam, extra, 3, np.int64(1), tolerance, scale, work, decomposed
             )
             sweeps += more
             if done:

@@ -25,10 +25,7 @@ sweeps is handed to a semi-smooth Newton method on the Alart–Curnier function 
 and the next round of sweeps goes on from its answer (one sweep, when Newton found the root).
 That first sweep judges the polish: if it changes the contact velocities more than the last
 sweep before it, λ goes back to where the sweeps had it and the element is not polished again.
-On BoxLanding's trained-policy states (150 × 512 × 8 steps, 352,786 with contacts) this took
-the capped solves from 994 to 573 and the compiled physics from 3.96–3.99 to 3.62–3.70 µs per
-element step; in the speed bench's landing batch (Δt = 0.01 s, 1024 boxes, 50 steps) the
-capped solves from 170 to 56.
+With the polish fewer solves stop at their cap, in less time (``docs/performance.md``).
 
 Stopping: a batch element has converged when a whole sweep changes no contact velocity (A Δλ
 over the sweep) by more than ``tolerance`` times its velocity scale (the largest free contact
@@ -240,14 +237,8 @@ def solve(e, st, d):
         slots = owner[:0]  # empty: every slot (``delassus``)
         a = block(every, head, 3 * c, 3 * c)
         work = every[head + 9 * c * c :]
-        free, lam, target, short, extra, mu = (
-            free_all,
-            lam_all,
-            target_all,
-            short_all,
-            extra_all,
-            mu_all,
-        )
+        free, lam, target = free_all, lam_all, target_all
+        short, extra, mu = short_all, extra_all, mu_all
     else:
         # The contacts that take part (the docstring): within reach, or holding an impact's
         # impulse.
@@ -313,21 +304,12 @@ def solve(e, st, d):
                 reachable[s] = short[s] > 0 or cs[_slot(slots, s), PATH_GAP] <= reach
             if not active_set_start(short, a, free, reachable, extra, mu, lam, shortfall):
                 _particle(short_all, mass, shaped, k, lam_all, slots, lam)
+        # (the probe's sweep decomposed A_tt into ``work``: True)
+        newton_after, newton_steps = ints[I_NEWTON_AFTER], ints[I_NEWTON_STEPS]
         more, converged, steps = converge(
-            a,
-            free,
-            target,
-            mu,
-            lam,
-            extra,
-            max_iterations,
-            tolerance,
-            scale,
-            ints[I_NEWTON_AFTER],
-            ints[I_NEWTON_STEPS],
-            work,
-            np.bool_(True),  # the probe's sweep decomposed A_tt into ``work``
-        )
+            a, free, target, mu, lam, extra, max_iterations, tolerance, scale, newton_after,
+            newton_steps, work, np.bool_(True),
+        )  # fmt: skip
         sweeps += more
     if pairs is not None:  # (else lam is lam_all)
         lam_all[:] = 0.0
@@ -401,7 +383,7 @@ def report_of(tolerance: float):
         if counts is not None:  # several steps: the most of any one step
             engaged, capped, warmed = (int(m) for m in counts.max(axis=0))
         # ContactReport(...) without the frozen dataclass's nine object.__setattr__ calls
-        # (~1.5 µs of a ~10 µs batch-1 step); the same instance, fields set once.
+        # (a share of a batch-1 step): the same instance, fields set once.
         out = object.__new__(ContactReport)
         if engaged == 0:
             iterations = impacts = unpaid = newton = 0.0

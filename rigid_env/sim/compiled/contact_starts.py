@@ -57,7 +57,7 @@ def active_set_start(short, a, free, reachable, extra, mu, lam, shortfall):
     from the ground particle start instead (``particle_start``)."""
     c = short.shape[0]
     size = 3 * c
-    # Scratch in three allocations (each costs ~0.05 µs; this runs on most contact steps).
+    # Scratch in three allocations (this runs on most contact steps).
     floats = np.empty(5 * size + 2 * c + size * size + 3 * size * (size + 1))
     goal = floats[:size]
     rhs = floats[size : 2 * size]

@@ -172,7 +172,7 @@ class Driver:
         """``scene.report`` from the step's report columns, by the kernels that wrote them;
         ``counts`` the per-step counts of a call of several steps (``__call__``), else None."""
         reporters = self._reporters
-        if len(reporters) == 1:  # (the common case: a batch-1 step saves ~0.1 µs)
+        if len(reporters) == 1:  # (the common case: no dict to merge)
             return reporters[0](columns, counts)
         out = {}
         for fn in reporters:
@@ -217,7 +217,7 @@ class Driver:
         force = zero if force is None else _load(force, shape, flat)
         torque = zero if torque is None else _load(torque, shape, flat)
         body = zero if body_torque is None else _load(body_torque, shape, flat)
-        # Fresh outputs (np.empty of a shape: ~0.1 µs cheaper than empty_like) and report.
+        # Fresh outputs (np.empty of a shape: cheaper than empty_like) and report.
         x, q, v, w = np.empty(flat), np.empty(qflat), np.empty(flat), np.empty(flat)
         report = np.zeros(rflat) if self.slots else zero_report
         # A single step's counts are the report's own (the scene does not read these): one
@@ -308,9 +308,8 @@ class Driver:
         """The batch in one contiguous chunk per worker thread; ``step`` releases the GIL.
         Elements are independent, so the bits are those of the serial loop. Each chunk
         counts its elements per step into its own array; the sums go into ``counts``."""
-        # One chunk per thread although the two halves of BoxLanding's trained-policy states
-        # differ by 5 % in cost (capped solves): four per thread, taken as threads free up,
-        # measured no faster (3.00-3.14 µs per element step against 2.94-3.05).
+        # One chunk per thread: four per thread, taken as threads free up, were no faster on
+        # BoxLanding's unevenly costly states (``docs/performance.md``).
         size = args[0].shape[0]
         workers = min(self.workers, size)
         bounds = np.linspace(0, size, workers + 1).astype(int)
@@ -360,7 +359,7 @@ def _take(data, lo: int, hi: int):
 
 def _entry_point(dispatcher, signature):
     """The compiled function behind a dispatcher for these argument types, callable without
-    the dispatcher's type resolution (~1 µs of a batch-1 step). Safe here because ``_plain``
+    the dispatcher's type resolution (a share of a batch-1 step). Safe here because ``_plain``
     and the driver's own buffers give every call of one driver the same argument types; None
     (use the dispatcher) if numba's internals differ from what this expects."""
     try:

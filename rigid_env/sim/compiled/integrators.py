@@ -57,8 +57,8 @@ from .rotation import (
 from .steps import BODY_TORQUE
 
 # --- shared pieces ----------------------------------------------------------------------------
-# The helpers that take the step tuple are inlined (numba IR): called, each costs ~100 ns per
-# element in argument passing, more than the arithmetic of a whole free-body step.
+# The helpers that take the step tuple are inlined (numba IR): called, each would cost more
+# per element in argument passing than the arithmetic of a whole free-body step.
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -214,6 +214,16 @@ def rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, start, x0, q0, v0, w0):
     return v, qdot, vdot, ldot
 
 
+@njit(cache=True, error_model="numpy")
+def rk4_stage(bd, b, fds, y0, h, k, loads, begin):
+    """The RK4 derivative at y0 + h k, y = (x, q, v, L); ``loads`` = (fa, ta, tb) and ``begin``
+    the step's start state (x0, q0, v0, w0), as ``rk4_derivative`` takes them."""
+    (x0, q0, v0, l0), (fa, ta, tb), (xs, qs, vs, ws) = y0, loads, begin
+    x, q, v = axpy(x0, h, k[0]), axpy4(q0, h, k[1]), axpy(v0, h, k[2])
+    lw = axpy(l0, h, k[3])
+    return rk4_derivative(bd, b, fds, x, q, v, lw, fa, ta, tb, False, xs, qs, vs, ws)
+
+
 def rk4(tag, e, st, d):
     """classical RK4 on (x, q, v, L)."""
     (bd, prm, sd), fds = d
@@ -223,58 +233,11 @@ def rk4(tag, e, st, d):
         tb = load_body_torque(st, e, b)
         l0 = apply_inertia(bd, b, quat_to_matrix(q0), w0)
         k1 = rk4_derivative(bd, b, fds, x0, q0, v0, l0, fa, ta, tb, True, x0, q0, v0, w0)
+        y0, loads, begin = (x0, q0, v0, l0), (fa, ta, tb), (x0, q0, v0, w0)
         h = 0.5 * dt
-        k2 = rk4_derivative(
-            bd,
-            b,
-            fds,
-            axpy(x0, h, k1[0]),
-            axpy4(q0, h, k1[1]),
-            axpy(v0, h, k1[2]),
-            axpy(l0, h, k1[3]),
-            fa,
-            ta,
-            tb,
-            False,
-            x0,
-            q0,
-            v0,
-            w0,
-        )
-        k3 = rk4_derivative(
-            bd,
-            b,
-            fds,
-            axpy(x0, h, k2[0]),
-            axpy4(q0, h, k2[1]),
-            axpy(v0, h, k2[2]),
-            axpy(l0, h, k2[3]),
-            fa,
-            ta,
-            tb,
-            False,
-            x0,
-            q0,
-            v0,
-            w0,
-        )
-        k4 = rk4_derivative(
-            bd,
-            b,
-            fds,
-            axpy(x0, dt, k3[0]),
-            axpy4(q0, dt, k3[1]),
-            axpy(v0, dt, k3[2]),
-            axpy(l0, dt, k3[3]),
-            fa,
-            ta,
-            tb,
-            False,
-            x0,
-            q0,
-            v0,
-            w0,
-        )
+        k2 = rk4_stage(bd, b, fds, y0, h, k1, loads, begin)
+        k3 = rk4_stage(bd, b, fds, y0, h, k2, loads, begin)
+        k4 = rk4_stage(bd, b, fds, y0, dt, k3, loads, begin)
         s = dt / 6
         x = rk4_combine3(x0, s, k1[0], k2[0], k3[0], k4[0])
         q = rk4_combine4(q0, s, k1[1], k2[1], k3[1], k4[1])

@@ -3,8 +3,8 @@
 The active set's equations are rank-deficient by construction (a face's four corners give four
 normal rows of rank three; a body has six degrees of freedom however many rows its contacts
 add), and the start wants their minimum-norm solution, ``pinv``'s (redundant supports share the
-load equally). LAPACK's SVD behind numba's ``pinv`` costs ~13 µs for a 12×12 system
-per call; this costs ~1 µs:
+load equally). This is an order of magnitude cheaper than LAPACK's SVD behind numba's
+``pinv`` for a 12×12 system:
 
 * A symmetric positive semidefinite (the Delassus matrix's live block, no contact at its cone's
   boundary): pivoted Cholesky A = L̃ L̃ᵀ stopped at the numerical rank r (Higham, "Accuracy and

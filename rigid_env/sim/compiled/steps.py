@@ -52,11 +52,10 @@ BODY_TORQUE = STEP_TUPLE_SIZE  # appended by the driver after the layout's slots
 
 # Written for numba's reference-count pruning. Where an inlined function binds the step
 # tuple's arrays they are increfed, and decrefed where its body ends: an atomic add each, about
-# half of Reorient's compiled step (a free body, 2 splitting steps per call: 0.30 -> 0.14 µs per
-# element without them, measured on this machine). numba's pruner removes such a pair only
-# across a short stretch of code with no early exit and no call that can raise. So ``begin``
-# has no early return from its loop, ``finite`` no branch, and ``finite`` indexes ``st`` in
-# place instead of binding names (with names, measured, the pairs stayed).
+# half of Reorient's compiled step (``docs/performance.md``). numba's pruner removes such a pair
+# only across a short stretch of code with no early exit and no call that can raise. So
+# ``begin`` has no early return from its loop, ``finite`` no branch, and ``finite`` indexes
+# ``st`` in place instead of binding names (with names the pairs stayed).
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -189,8 +188,8 @@ GROUND, PAIRS, ASSEMBLE, RESTITUTE, SOLVE, LIMIT, SEPARATE = range(7)
 
 # --- the steps ----------------------------------------------------------------------------------
 # The scratch (displacement, contact slots, the start copies that ``carry`` overwrites) is
-# allocated here, per call: an allocation costs ~0.03 µs in compiled code against ~0.2-1 µs
-# from Python plus the unboxing of each array passed in; per call, so concurrent steps of one
+# allocated here, per call: an allocation in compiled code costs a fraction of one from Python
+# and of the unboxing of each array passed in; per call, so concurrent steps of one
 # scene (threads) cannot mix. An element's steps are written into the loop, not an inlined
 # function: binding ``st``, ``data`` and ``total`` as its arguments costs each element an
 # atomic incref and decref per array (see the top of this module).

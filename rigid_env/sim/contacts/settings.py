@@ -15,9 +15,8 @@ MAX_ITERATIONS = 500
 TOLERANCE = 1e-12
 MAX_IMPACTS = 32
 STARTS = ("active_set", "particle")
-# Sweeps per round between Newton polishes. In the BoxLanding rollout (python -m
-# rigid_env.bench.contact_solve --rollout boxlanding --episodes 20): 10 took 13.9 µs per physics
-# step and capped 0.07 % of contact steps, 30 took 14.7 µs and capped 0.10 %.
+# Sweeps per round between Newton polishes: 10 was faster and capped fewer solves than 30 in
+# the BoxLanding rollout (``docs/performance.md``).
 NEWTON_AFTER = 10
 NEWTON_STEPS = 50  # Newton steps at most per solve
 
